@@ -1,0 +1,54 @@
+"""3D ATR module (paper §II-A offline templates, §II-B-2 online matcher): pure functions on numpy arrays."""
+
+from atr.recognition.config import DESCRIPTORS, RecognitionConfig
+from atr.recognition.matcher import (
+    STAGES,
+    Detection,
+    RecognitionResult,
+    recognize,
+    suppress_non_maxima,
+)
+from atr.recognition.steps import (
+    Correspondences,
+    Hypothesis,
+    Verification,
+    filter_smooth_surfaces,
+    group_geometrically_consistent,
+    match_knndr,
+    ransac_per_group,
+    rigid_transform,
+    uniform_subsample,
+    verify_with_icp,
+)
+from atr.recognition.template import (
+    Template,
+    build_template,
+    hidden_point_removal,
+    sample_mesh_surface,
+    template_from_points,
+)
+
+__all__ = [
+    "DESCRIPTORS",
+    "STAGES",
+    "Correspondences",
+    "Detection",
+    "Hypothesis",
+    "RecognitionConfig",
+    "RecognitionResult",
+    "Template",
+    "Verification",
+    "build_template",
+    "filter_smooth_surfaces",
+    "group_geometrically_consistent",
+    "hidden_point_removal",
+    "match_knndr",
+    "ransac_per_group",
+    "recognize",
+    "rigid_transform",
+    "sample_mesh_surface",
+    "suppress_non_maxima",
+    "template_from_points",
+    "uniform_subsample",
+    "verify_with_icp",
+]

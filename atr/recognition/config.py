@@ -1,0 +1,153 @@
+"""Parameters of the 3D ATR module (paper §II-A offline phase, §II-B-2 online phase).
+
+Every geometric threshold is a named multiple ``k_*`` of one physical scale, ``resolution_m`` (the uniform
+subsampling resolution of model and scene). Values the paper gives are cited by section; the others say
+where they come from (PCL's recognition tutorial, or measurements on simulator runs kept apart from the
+evaluation runs, see docs/recognition.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from atr.errors import ConfigError
+
+DESCRIPTORS: tuple[str, ...] = ("shot", "usc", "3dsc", "fpfh", "rops", "hod", "hod-s")
+"""Descriptor names the matcher accepts (paper Table III)."""
+
+
+@dataclass(frozen=True)
+class RecognitionConfig:
+    """Configuration of template building and of the online matcher.
+
+    Attributes:
+        resolution_m: uniform subsampling resolution of model and scene, metres (§II-A, §II-B-2: 0.3 m).
+            Every geometric threshold below is a multiple of it.
+        normal_k: neighbours of the plane fit that gives each vertex its normal (§II-B-2: six).
+        knndr_k: k of the kNNDR matching (§II-B-2: k = 10).
+        ransac_iterations: RANSAC iterations per correspondence group (§II-B-2: 1000).
+        descriptor: default 3D descriptor, one of ``DESCRIPTORS`` (Table III).
+        k_support_radius: descriptor support radius / resolution. The paper uses rho x r with rho "as
+            suggested by the authors of each descriptor" (§III-B); PCL's tutorial advises 5-20 x the
+            mean spacing. 5 x 0.3 m = 1.5 m covers a T-72 turret or hull corner (~80 vertices).
+        smooth_angle_rad: a vertex whose normal deviates from its neighbours' normals by less than this
+            mean angle lies on a smooth surface and is filtered out of the keypoints (§II-B-2). 10 deg keeps
+            edges and curved parts and removes ground, roofs and walls (measured, docs/recognition.md).
+        knndr_ratio: a model descriptor among the k nearest is kept as a correspondence when its distance is
+            below this fraction of the k-th (the "background") distance. 0.8 is Lowe's NNDR value, also the
+            paper's 2D threshold (§III-B).
+        max_correspondences: keep at most this many best correspondences before grouping (bounds the
+            quadratic grouping time on 260k-point LIDAR scenes).
+        k_consensus: geometric-consistency tolerance / resolution: two correspondences agree when their
+            scene and model distances differ by less than this (PCL GeometricConsistencyGrouping gc_size).
+            Two voxels' worth covers the subsampling jitter of both clouds.
+        min_group_size: smallest consistent group given to RANSAC (PCL tutorial cg_thresh = 5).
+        max_groups: at most this many groups (largest first) become RANSAC hypotheses.
+        k_ransac_inlier: RANSAC inlier distance / resolution (one voxel of jitter on each side).
+        k_icp_gate: ICP maximum correspondence distance / resolution (Open3D's registration example
+            uses 0.4-1.5 x voxel; 2 lets ICP pull in a hypothesis that RANSAC placed a voxel off).
+        icp_iterations: ICP iterations in verification (Open3D's default 30).
+        k_overlap: a model vertex overlaps the scene when a scene vertex lies within this distance / resolution.
+        min_overlap: a hypothesis is accepted when at least this fraction of the model's vertices overlap the
+            scene after ICP (§II-B-2 "overlapping vertices that exceed a threshold").
+        min_overlap_vertices: and at least this many model vertices overlap (rejects tiny accidental fits).
+        k_nms: hypotheses whose target centres are closer than this / resolution are one location; only the
+            best-scoring target is reported there (recognition between the T-72 and its confusers).
+        max_scene_points: scenes larger than this are refused (InputError) before any work.
+        max_scene_keypoints: at most this many filtered scene vertices are described (evenly thinned,
+            deterministic); bounds the describe time on dense LIDAR scenes.
+        template_samples_per_m2: dense surface sampling of the CAD mesh before HPR (§II-A), points per m^2.
+        template_elevation_deg: elevation of the aerial viewpoint(s) of the template's HPR (§II-A); 30 deg is
+            the paper's medium obliquity, from which its 2D templates were taken (§III-D).
+        template_azimuths_deg: azimuths of the HPR viewpoints whose union is the template; one view is the
+            paper's choice (§II-A), several cover the orbit's 360 deg (docs/recognition.md).
+        template_distance_m: distance of the HPR viewpoints from the model centre (scenario 1 range, Table II).
+        hpr_radius_factor: Open3D HPR spherical-flip radius as a multiple of the viewpoint distance
+            (Katz et al. 2007; Open3D's example uses 100 x the diameter).
+    """
+
+    resolution_m: float = 0.3
+    normal_k: int = 6
+    knndr_k: int = 10
+    ransac_iterations: int = 1000
+    descriptor: str = "shot"
+    k_support_radius: float = 5.0
+    smooth_angle_rad: float = math.radians(10.0)
+    knndr_ratio: float = 0.8
+    max_correspondences: int = 3000
+    k_consensus: float = 2.0
+    min_group_size: int = 5
+    max_groups: int = 10
+    k_ransac_inlier: float = 1.0
+    k_icp_gate: float = 2.0
+    icp_iterations: int = 30
+    k_overlap: float = 1.0
+    min_overlap: float = 0.5
+    min_overlap_vertices: int = 20
+    k_nms: float = 10.0
+    max_scene_points: int = 5_000_000
+    max_scene_keypoints: int = 20_000
+    template_samples_per_m2: float = 400.0
+    template_elevation_deg: float = 30.0
+    template_azimuths_deg: tuple[float, ...] = (0.0,)
+    template_distance_m: float = 50.0
+    hpr_radius_factor: float = 100.0
+
+    def __post_init__(self) -> None:
+        """Validate every field; raise ConfigError naming the bad value."""
+        if self.descriptor not in DESCRIPTORS:
+            raise ConfigError(f"descriptor {self.descriptor!r} must be one of {DESCRIPTORS}")
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in ("descriptor", "template_azimuths_deg", "template_elevation_deg"):
+                continue
+            if not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
+                raise ConfigError(f"{f.name} = {value!r} must be a finite number > 0")
+        if self.normal_k < 3:
+            raise ConfigError(f"normal_k = {self.normal_k} must be >= 3 (a plane needs 3 points)")
+        if self.knndr_k < 2:
+            raise ConfigError(f"knndr_k = {self.knndr_k} must be >= 2 (a ratio needs two distances)")
+        if not 0 < self.knndr_ratio <= 1:
+            raise ConfigError(f"knndr_ratio = {self.knndr_ratio} must be in (0, 1]")
+        if not 0 < self.min_overlap <= 1:
+            raise ConfigError(f"min_overlap = {self.min_overlap} must be in (0, 1]")
+        if self.min_group_size < 3:
+            raise ConfigError(f"min_group_size = {self.min_group_size} must be >= 3 (a pose needs 3)")
+        if not self.template_azimuths_deg:
+            raise ConfigError("template_azimuths_deg is empty; at least one HPR viewpoint is needed")
+        if not -90.0 < self.template_elevation_deg <= 90.0:
+            raise ConfigError(
+                f"template_elevation_deg = {self.template_elevation_deg} must be in (-90, 90]"
+            )
+
+    # Derived thresholds, metres.
+    @property
+    def support_radius_m(self) -> float:
+        """Descriptor support radius, metres."""
+        return self.k_support_radius * self.resolution_m
+
+    @property
+    def consensus_m(self) -> float:
+        """Geometric-consistency tolerance, metres."""
+        return self.k_consensus * self.resolution_m
+
+    @property
+    def ransac_inlier_m(self) -> float:
+        """RANSAC inlier distance, metres."""
+        return self.k_ransac_inlier * self.resolution_m
+
+    @property
+    def icp_gate_m(self) -> float:
+        """ICP maximum correspondence distance, metres."""
+        return self.k_icp_gate * self.resolution_m
+
+    @property
+    def overlap_m(self) -> float:
+        """Model-scene overlap distance, metres."""
+        return self.k_overlap * self.resolution_m
+
+    @property
+    def nms_m(self) -> float:
+        """Distance under which two hypotheses are one location, metres."""
+        return self.k_nms * self.resolution_m

@@ -1,0 +1,375 @@
+"""The steps of the online 3D ATR module (paper §II-B-2), each a pure function on numpy arrays.
+
+uniform_subsample -> filter_smooth_surfaces -> (describe) -> match_knndr -> group_geometrically_consistent
+-> ransac_per_group -> verify_with_icp. ``recognize`` in ``atr.recognition.matcher`` chains them.
+
+Geometric-consistency grouping follows the idea of PCL's GeometricConsistencyGrouping (Chen & Bhanu 2007);
+the kNNDR rule, RANSAC on a group and the overlap test are written here because no library has them in this
+form. Open3D provides k-NN normals and ICP.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import open3d as o3d
+from scipy.spatial import cKDTree
+
+from atr.errors import InputError
+
+
+def uniform_subsample(points: np.ndarray, leaf_m: float) -> np.ndarray:
+    """Uniform subsampling: per occupied voxel of edge ``leaf_m``, the point closest to the voxel centre.
+
+    Same rule as PCL's UniformSampling, with a defined output order (voxels sorted by their integer keys).
+
+    Args:
+        points: (N, 3) float, metres; must be finite.
+        leaf_m: voxel edge, metres, > 0.
+
+    Returns:
+        (M,) int64 indices into ``points``, M <= N.
+    """
+    if leaf_m <= 0:
+        raise InputError(f"subsampling leaf {leaf_m} m must be > 0")
+    pts = np.asarray(points, np.float64)
+    if len(pts) == 0:
+        return np.zeros(0, np.int64)
+    raw = np.floor(pts / leaf_m)
+    d2 = np.sum((pts - (raw + 0.5) * leaf_m) ** 2, axis=1)
+    cell = (raw - raw.min(axis=0)).astype(np.int64)
+    dims = cell.max(axis=0) + 1
+    if float(np.prod(dims.astype(np.float64))) < 2.0**62:
+        key = (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]
+        _, inverse = np.unique(key, return_inverse=True)
+    else:  # astronomically large extent: fall back to row-unique
+        _, inverse = np.unique(cell, axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    order = np.lexsort((np.arange(len(pts)), d2, inverse))
+    first = np.ones(len(order), bool)
+    first[1:] = inverse[order[1:]] != inverse[order[:-1]]
+    return order[first].astype(np.int64)
+
+
+def filter_smooth_surfaces(
+    points: np.ndarray, normals: np.ndarray, k: int, min_angle_rad: float
+) -> np.ndarray:
+    """Smooth-surface filter: keep vertices whose normal varies against their neighbours' normals.
+
+    The variation of a vertex is the mean angle between its normal and the normals of its k nearest
+    neighbours, sign-blind (a normal and its flip are the same surface).
+
+    Args:
+        points: (N, 3) float, metres.
+        normals: (N, 3) float, unit normals.
+        k: neighbours compared with each vertex.
+        min_angle_rad: vertices with a mean variation below this are smooth and dropped, radians.
+
+    Returns:
+        (N,) bool, True = kept (not smooth).
+    """
+    n = len(points)
+    if n == 0:
+        return np.zeros(0, bool)
+    kk = min(k + 1, n)
+    _, nbr = cKDTree(points).query(points, k=kk)
+    nbr = np.asarray(nbr).reshape(n, kk)[:, 1:]
+    if nbr.shape[1] == 0:
+        return np.ones(n, bool)
+    cos = np.abs(np.einsum("ij,ikj->ik", normals, normals[nbr]))
+    variation = np.arccos(np.clip(cos, 0.0, 1.0)).mean(axis=1)
+    return variation >= min_angle_rad
+
+
+@dataclass(frozen=True)
+class Correspondences:
+    """Scene-model keypoint correspondences.
+
+    Attributes:
+        scene: (C,) int64 indices of scene keypoints.
+        model: (C,) int64 indices of model keypoints.
+        distance: (C,) float64 descriptor distances (L2), best first.
+    """
+
+    scene: np.ndarray
+    model: np.ndarray
+    distance: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.scene)
+
+
+def match_knndr(
+    scene_desc: np.ndarray,
+    model_desc: np.ndarray,
+    k: int,
+    ratio: float,
+    max_correspondences: int | None = None,
+) -> Correspondences:
+    """k-nearest-neighbour distance-ratio matching (§II-B-2, k = 10).
+
+    For each scene descriptor, its k nearest model descriptors d_1 <= ... <= d_k are found; the j-th (j < k)
+    is kept when d_j < ratio * d_k, i.e. clearly closer than the k-th, which stands for the background of
+    unrelated descriptors. With k = 2 this is Lowe's NNDR; larger k lets a scene vertex keep several model
+    candidates on a target with repeated structure (road wheels, symmetric hull).
+
+    Args:
+        scene_desc: (S, L) float, rows with NaN are ignored.
+        model_desc: (M, L) float, rows with NaN are ignored.
+        k: neighbours considered (capped at M).
+        ratio: distance-ratio threshold in (0, 1].
+        max_correspondences: keep only this many best (smallest distance) correspondences.
+
+    Returns:
+        Correspondences sorted by distance (ties by scene then model index).
+    """
+    s = np.asarray(scene_desc, np.float64)
+    m = np.asarray(model_desc, np.float64)
+    empty = Correspondences(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    if s.ndim != 2 or m.ndim != 2 or s.shape[1] != m.shape[1]:
+        raise InputError(f"descriptor shapes {s.shape} and {m.shape} must be (S, L) and (M, L)")
+    s_ok = np.flatnonzero(np.isfinite(s).all(axis=1))
+    m_ok = np.flatnonzero(np.isfinite(m).all(axis=1))
+    if len(s_ok) == 0 or len(m_ok) < 2:
+        return empty
+    s, m = s[s_ok], m[m_ok]
+    kk = min(k, len(m))
+    # Brute force: descriptors are up to 1980 long, where kd-trees are no faster.
+    d2 = (s * s).sum(1)[:, None] + (m * m).sum(1)[None, :] - 2.0 * (s @ m.T)
+    np.maximum(d2, 0.0, out=d2)
+    part = np.argpartition(d2, kk - 1, axis=1)[:, :kk]
+    pd = np.take_along_axis(d2, part, axis=1)
+    order = np.lexsort((part, pd), axis=1)
+    nn = np.take_along_axis(part, order, axis=1)
+    dist = np.sqrt(np.take_along_axis(pd, order, axis=1))
+    keep = dist[:, :-1] < ratio * dist[:, -1:]
+    rows, cols = np.nonzero(keep)
+    sc, mo, di = s_ok[rows], m_ok[nn[rows, cols]], dist[rows, cols]
+    o = np.lexsort((mo, sc, di))
+    if max_correspondences is not None:
+        o = o[:max_correspondences]
+    return Correspondences(sc[o].astype(np.int64), mo[o].astype(np.int64), di[o])
+
+
+@numba.njit(cache=True)
+def _gc_groups(scene_xyz, model_xyz, consensus, min_size):  # pragma: no cover - compiled
+    n = scene_xyz.shape[0]
+    taken = np.zeros(n, np.bool_)
+    labels = -np.ones(n, np.int64)
+    members = np.empty(n, np.int64)
+    n_groups = 0
+    for i in range(n):
+        if taken[i]:
+            continue
+        members[0] = i
+        size = 1
+        for j in range(n):
+            if j == i or taken[j]:
+                continue
+            good = True
+            for q in range(size):
+                a = members[q]
+                ds = np.sqrt(
+                    (scene_xyz[a, 0] - scene_xyz[j, 0]) ** 2
+                    + (scene_xyz[a, 1] - scene_xyz[j, 1]) ** 2
+                    + (scene_xyz[a, 2] - scene_xyz[j, 2]) ** 2
+                )
+                dm = np.sqrt(
+                    (model_xyz[a, 0] - model_xyz[j, 0]) ** 2
+                    + (model_xyz[a, 1] - model_xyz[j, 1]) ** 2
+                    + (model_xyz[a, 2] - model_xyz[j, 2]) ** 2
+                )
+                if abs(ds - dm) > consensus:
+                    good = False
+                    break
+            if good:
+                members[size] = j
+                size += 1
+        if size >= min_size:
+            for q in range(size):
+                taken[members[q]] = True
+                labels[members[q]] = n_groups
+            n_groups += 1
+    return labels, n_groups
+
+
+def group_geometrically_consistent(
+    scene_keypoints: np.ndarray,
+    model_keypoints: np.ndarray,
+    corr: Correspondences,
+    consensus_m: float,
+    min_size: int,
+    max_groups: int | None = None,
+) -> list[np.ndarray]:
+    """Group correspondences into geometrically consistent sets (PCL GeometricConsistencyGrouping idea).
+
+    Seeds are taken best descriptor distance first; a correspondence joins a seed's group when, against every
+    member already in it, the scene distance and the model distance differ by less than ``consensus_m``
+    (rigid motions preserve distances). Groups of at least ``min_size`` claim their members.
+
+    Args:
+        scene_keypoints: (S, 3) metres.
+        model_keypoints: (M, 3) metres.
+        corr: correspondences, best first.
+        consensus_m: distance-preservation tolerance, metres.
+        min_size: smallest group kept.
+        max_groups: keep the largest this many groups (ties: earlier seed first).
+
+    Returns:
+        list of (G_i,) int64 arrays of indices into ``corr``, largest first.
+    """
+    if len(corr) < min_size:
+        return []
+    labels, n_groups = _gc_groups(
+        np.ascontiguousarray(scene_keypoints[corr.scene], np.float64),
+        np.ascontiguousarray(model_keypoints[corr.model], np.float64),
+        float(consensus_m),
+        int(min_size),
+    )
+    groups = [np.flatnonzero(labels == g) for g in range(n_groups)]
+    groups.sort(key=lambda g: -len(g))  # stable: equal sizes keep seed order
+    return groups if max_groups is None else groups[:max_groups]
+
+
+def rigid_transform(model_xyz: np.ndarray, scene_xyz: np.ndarray) -> np.ndarray:
+    """Least-squares rigid transform (Kabsch) mapping model points onto scene points; (4, 4) float64."""
+    mc, sc = model_xyz.mean(0), scene_xyz.mean(0)
+    H = (model_xyz - mc).T @ (scene_xyz - sc)
+    U, _, Vt = np.linalg.svd(H)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0])
+    R = Vt.T @ D @ U.T
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = sc - R @ mc
+    return T
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """A transformation hypothesis from one correspondence group.
+
+    Attributes:
+        T_scene_model: (4, 4) float64, maps model coordinates into the scene.
+        inliers: RANSAC inliers among the group's correspondences.
+        group_size: correspondences in the group.
+    """
+
+    T_scene_model: np.ndarray
+    inliers: int
+    group_size: int
+
+
+def ransac_per_group(
+    scene_keypoints: np.ndarray,
+    model_keypoints: np.ndarray,
+    corr: Correspondences,
+    group: np.ndarray,
+    iterations: int,
+    inlier_m: float,
+    rng: np.random.Generator,
+) -> Hypothesis | None:
+    """RANSAC on one consistent group (§II-B-2, 1000 iterations) -> a transformation hypothesis.
+
+    Each iteration fits a rigid transform to 3 random correspondences; the one with most inliers (scene
+    residual < ``inlier_m``) is refitted on its inliers.
+
+    Returns:
+        The hypothesis, or None when the group has fewer than 3 correspondences or no non-degenerate sample.
+    """
+    s = np.asarray(scene_keypoints[corr.scene[group]], np.float64)
+    m = np.asarray(model_keypoints[corr.model[group]], np.float64)
+    n = len(group)
+    if n < 3:
+        return None
+    idx = rng.integers(0, n, size=(iterations, 3))
+    ok = (idx[:, 0] != idx[:, 1]) & (idx[:, 0] != idx[:, 2]) & (idx[:, 1] != idx[:, 2])
+    idx = idx[ok]
+    if len(idx) == 0:
+        return None
+    ms, ss = m[idx], s[idx]  # (I, 3, 3)
+    mc, sc = ms.mean(1, keepdims=True), ss.mean(1, keepdims=True)
+    H = np.einsum("ikj,ikl->ijl", ms - mc, ss - sc)
+    U, _, Vt = np.linalg.svd(H)
+    det = np.linalg.det(np.einsum("ikj,ilk->ijl", Vt, U))  # det(V U^T)
+    Vt_fix = Vt.copy()
+    Vt_fix[:, 2, :] *= np.where(det < 0, -1.0, 1.0)[:, None]
+    R = np.einsum("ikj,ilk->ijl", Vt_fix, U)  # V D U^T
+    t = sc[:, 0, :] - np.einsum("ijk,ik->ij", R, mc[:, 0, :])
+    pred = np.einsum("ijk,nk->inj", R, m) + t[:, None, :]
+    inl = np.sum((pred - s[None]) ** 2, axis=2) < inlier_m**2
+    counts = inl.sum(1)
+    best = int(np.argmax(counts))  # first maximum: deterministic
+    if counts[best] < 3:
+        return None
+    mask = inl[best]
+    T = rigid_transform(m[mask], s[mask])
+    final = np.sum(((m @ T[:3, :3].T + T[:3, 3]) - s) ** 2, axis=1) < inlier_m**2
+    return Hypothesis(T_scene_model=T, inliers=int(max(final.sum(), counts[best])), group_size=n)
+
+
+@dataclass(frozen=True)
+class Verification:
+    """Outcome of ICP verification of one hypothesis.
+
+    Attributes:
+        T_scene_model: (4, 4) float64 after ICP refinement.
+        overlap: fraction of model vertices with a scene vertex within the overlap distance.
+        overlap_vertices: how many model vertices overlap.
+        rmse_m: RMS distance of the overlapping vertices, metres.
+    """
+
+    T_scene_model: np.ndarray
+    overlap: float
+    overlap_vertices: int
+    rmse_m: float
+
+
+def verify_with_icp(
+    model_points: np.ndarray,
+    scene_points: np.ndarray,
+    T_scene_model: np.ndarray,
+    icp_gate_m: float,
+    overlap_m: float,
+    icp_iterations: int,
+    scene_tree: cKDTree | None = None,
+    scene_cloud: o3d.geometry.PointCloud | None = None,
+) -> Verification:
+    """Apply a hypothesis to the model, refine it with ICP against the scene, measure the overlap (§II-B-2).
+
+    Args:
+        model_points: (N, 3) model vertices P_m, metres.
+        scene_points: (S, 3) scene vertices, metres.
+        T_scene_model: (4, 4) initial hypothesis.
+        icp_gate_m: ICP maximum correspondence distance, metres.
+        overlap_m: overlap distance, metres.
+        icp_iterations: ICP iteration cap.
+        scene_tree: optional prebuilt kd-tree of ``scene_points`` (reused across hypotheses).
+        scene_cloud: optional prebuilt Open3D cloud of ``scene_points``.
+
+    Returns:
+        The refined pose and its overlap with the scene.
+    """
+    src = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(model_points, np.float64)))
+    if scene_cloud is None:
+        scene_cloud = o3d.geometry.PointCloud(
+            o3d.utility.Vector3dVector(np.asarray(scene_points, np.float64))
+        )
+    result = o3d.pipelines.registration.registration_icp(
+        src,
+        scene_cloud,
+        float(icp_gate_m),
+        np.asarray(T_scene_model, np.float64),
+        o3d.pipelines.registration.TransformationEstimationPointToPoint(),
+        o3d.pipelines.registration.ICPConvergenceCriteria(max_iteration=int(icp_iterations)),
+    )
+    T = np.asarray(result.transformation, np.float64).copy()
+    if scene_tree is None:
+        scene_tree = cKDTree(scene_points)
+    moved = model_points @ T[:3, :3].T + T[:3, 3]
+    d, _ = scene_tree.query(moved, distance_upper_bound=overlap_m)
+    hit = np.isfinite(d)
+    n_hit = int(hit.sum())
+    rmse = float(np.sqrt(np.mean(d[hit] ** 2))) if n_hit else float("inf")
+    return Verification(T, n_hit / max(len(model_points), 1), n_hit, rmse)
