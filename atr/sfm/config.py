@@ -1,0 +1,135 @@
+"""Parameters of the two-view SfM module (paper §II-B-1), one frozen dataclass, validated on construction."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from atr.errors import ConfigError
+
+Matcher = Literal["gftt", "surf"]
+
+
+@dataclass(frozen=True)
+class SfmConfig:
+    """Settings of keypoint correspondence and known-pose triangulation.
+
+    Defaults are the paper's values (§II-B-1) where it gives one; the others cite their source.
+    Pixel thresholds are in pixels of the image given to the module (no hidden rescaling).
+    """
+
+    matcher: Matcher = "gftt"
+    """Correspondence scheme: "gftt" = GFTT corners tracked by KLT, "surf" = SURF + NNDR (§II-B-1)."""
+
+    # --- GFTT (Shi-Tomasi corners), §II-B-1 ---
+    gftt_min_quality: float = 1e-3
+    """Minimum corner quality, relative to the strongest corner's min-eigenvalue (§II-B-1: 1e-3)."""
+    gftt_filter_size_px: int = 3
+    """Gaussian filter size (px, odd) applied before the corner metric (§II-B-1: 3x3)."""
+    gftt_block_size_px: int = 3
+    """Structure-tensor window (px, odd); MATLAB's detectMinEigenFeatures uses the filter size here too."""
+    gftt_max_corners: int = 20000
+    """Corner cap (0 = none). The paper gives none; a cap bounds time. See docs/sfm.md (measured counts)."""
+    gftt_min_distance_px: float = 2.0
+    """Minimum corner spacing (px). MATLAB keeps 3x3 local maxima only, i.e. corners >= ~2 px apart."""
+
+    # --- KLT (pyramidal Lucas-Kanade), §II-B-1 ---
+    klt_window_px: int = 11
+    """Tracking window side (px), §II-B-1: 11x11."""
+    klt_pyramid_levels: int = 13
+    """Pyramid levels including full resolution (§II-B-1: 13 scales); OpenCV maxLevel = levels - 1."""
+    klt_iterations: int = 10
+    """Lucas-Kanade iterations per level (§II-B-1: 10)."""
+    klt_epsilon_px: float = 0.01
+    """Stop iterating when the update is below this (px). OpenCV's default criteria value."""
+    klt_max_forward_backward_px: float = 1.0
+    """Forward-backward error gate (px), §II-B-1 with Kalal et al. 2010 [24]: 1 px."""
+
+    # --- SURF (Bay et al. 2008), §II-B-1 ---
+    surf_octaves: int = 3
+    """Number of octaves. The paper does not give it; MATLAB detectSURFFeatures default (3)."""
+    surf_scale_levels: int = 6
+    """Scale levels per octave (§II-B-1: 6; MATLAB 'NumScaleLevels')."""
+    surf_blob_threshold: float = 1e-3
+    """Hessian determinant threshold on an image scaled to [0, 1], box responses normalised by the
+    filter area (§II-B-1: 1e-3)."""
+    surf_initial_step_px: int = 2
+    """Sampling step of the first octave (px), doubled per octave. Bay et al. 2008 §4.2 use 2."""
+    surf_max_keypoints: int = 4000
+    """Strongest keypoints kept per image (0 = all). Bounds the descriptor and matching time."""
+    surf_upright: bool = False
+    """True skips the orientation assignment (U-SURF, Bay et al. 2008 §4.3); our cameras roll."""
+    surf_nndr: float = 0.6
+    """Nearest-neighbour distance ratio threshold (§II-B-1: 0.6, empirically set by the authors)."""
+
+    # --- Triangulation with the known (IMU) relative pose ---
+    pixel_sigma_px: float = 0.5
+    """1-sigma localisation noise of a correspondence (px); propagates into SfmCloud.sigma_m.
+    Half the KLT forward-backward gate (§II-B-1: 1 px)."""
+    k_max_reprojection: float = 4.0
+    """Reprojection error gate in either image as a multiple of pixel_sigma_px (4 x 0.5 = 2 px)."""
+    min_parallax_deg: float = 0.5
+    """Minimum angle between the two viewing rays at the point (deg); below it depth is unreliable.
+    Measured choice, see docs/sfm.md."""
+    max_relative_sigma: float = 0.05
+    """Drop points whose predicted 1-sigma depth error exceeds this fraction of their range."""
+    min_baseline_m: float = 1e-3
+    """Camera centres closer than this (m) make a zero-baseline pair: an empty cloud, reason given."""
+    min_correspondences: int = 5
+    """Fewer correspondences than this give an empty cloud (nothing worth triangulating)."""
+
+    # --- Frame pairing ---
+    pair_gap_frames: int = 1
+    """Frames t and t + gap make a pair. Measured choice per range, see docs/sfm.md."""
+
+    def __post_init__(self) -> None:
+        if self.matcher not in ("gftt", "surf"):
+            raise ConfigError(f"matcher {self.matcher!r} must be 'gftt' or 'surf'")
+        if not 0.0 < self.gftt_min_quality < 1.0:
+            raise ConfigError(f"gftt_min_quality {self.gftt_min_quality} must be in (0, 1)")
+        for name in ("gftt_filter_size_px", "gftt_block_size_px", "klt_window_px"):
+            value = getattr(self, name)
+            if value < 1 or value % 2 == 0:
+                raise ConfigError(f"{name} {value} must be an odd integer >= 1")
+        _at_least(self, "gftt_max_corners", 0)
+        _at_least(self, "gftt_min_distance_px", 0.0)
+        _at_least(self, "klt_pyramid_levels", 1)
+        _at_least(self, "klt_iterations", 1)
+        _positive(self, "klt_epsilon_px")
+        _positive(self, "klt_max_forward_backward_px")
+        _at_least(self, "surf_octaves", 1)
+        if self.surf_scale_levels < 3:
+            raise ConfigError(
+                f"surf_scale_levels {self.surf_scale_levels} must be >= 3 (extrema need a level "
+                "above and below)"
+            )
+        _positive(self, "surf_blob_threshold")
+        _at_least(self, "surf_initial_step_px", 1)
+        _at_least(self, "surf_max_keypoints", 0)
+        if not 0.0 < self.surf_nndr <= 1.0:
+            raise ConfigError(f"surf_nndr {self.surf_nndr} must be in (0, 1]")
+        _positive(self, "pixel_sigma_px")
+        _positive(self, "k_max_reprojection")
+        if not 0.0 <= self.min_parallax_deg < 90.0:
+            raise ConfigError(f"min_parallax_deg {self.min_parallax_deg} must be in [0, 90)")
+        _positive(self, "max_relative_sigma")
+        _at_least(self, "min_baseline_m", 0.0)
+        _at_least(self, "min_correspondences", 1)
+        _at_least(self, "pair_gap_frames", 1)
+
+    @property
+    def max_reprojection_px(self) -> float:
+        """Reprojection error gate (px) = k_max_reprojection x pixel_sigma_px."""
+        return self.k_max_reprojection * self.pixel_sigma_px
+
+
+def _positive(config: SfmConfig, name: str) -> None:
+    value = getattr(config, name)
+    if not value > 0:
+        raise ConfigError(f"{name} {value} must be > 0")
+
+
+def _at_least(config: SfmConfig, name: str, lower: float) -> None:
+    value = getattr(config, name)
+    if not value >= lower:
+        raise ConfigError(f"{name} {value} must be >= {lower}")

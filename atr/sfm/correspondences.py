@@ -1,0 +1,218 @@
+"""Two-view keypoint correspondences (paper §II-B-1): GFTT + KLT, and SURF + NNDR.
+
+GFTT, KLT and the brute-force matcher are OpenCV's; SURF is ours (atr.sfm.surf), since OpenCV's
+wheels exclude it.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from atr.errors import InputError
+from atr.sfm.config import SfmConfig
+from atr.sfm.surf import Surf
+
+# Correspondence pairs: (N, 2) float32 pixels in image a, (N, 2) float32 pixels in image b.
+Correspondences = tuple[np.ndarray, np.ndarray]
+
+
+def as_gray_u8(image: np.ndarray, name: str) -> np.ndarray:
+    """Grey uint8 view of an image.
+
+    Args:
+        image: (H, W) or (H, W, 3) (BGR) uint8, or float in [0, 1].
+        name: argument name for error messages.
+
+    Returns:
+        (H, W) uint8.
+
+    Raises:
+        InputError: empty, wrong rank or channel count, non-finite values.
+    """
+    img = np.asarray(image)
+    if img.ndim == 3 and img.shape[2] == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    elif img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if img.ndim != 2 or img.size == 0:
+        raise InputError(f"{name} has shape {np.asarray(image).shape}, expected (H, W) or (H, W, 3)")
+    if img.dtype == np.uint8:
+        return np.ascontiguousarray(img)
+    if not np.issubdtype(img.dtype, np.floating):
+        raise InputError(f"{name} has dtype {img.dtype}, expected uint8 or float in [0, 1]")
+    if not np.all(np.isfinite(img)):
+        raise InputError(f"{name} contains non-finite values")
+    return np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
+
+
+def check_same_size(image_a: np.ndarray, image_b: np.ndarray) -> None:
+    """Raise InputError unless both images have the same height and width."""
+    if image_a.shape[:2] != image_b.shape[:2]:
+        raise InputError(
+            f"image sizes differ: image_a {image_a.shape[:2]} vs image_b {image_b.shape[:2]} "
+            "(both frames must come from the same camera)"
+        )
+
+
+def gftt_klt_correspondences(
+    image_a: np.ndarray, image_b: np.ndarray, config: SfmConfig
+) -> Correspondences:
+    """GFTT corners in image a tracked into image b by pyramidal KLT with a forward-backward check.
+
+    Args:
+        image_a: (H, W) or (H, W, 3) uint8 (or float in [0, 1]) first image.
+        image_b: the second image, same size.
+        config: GFTT and KLT settings (§II-B-1).
+
+    Returns:
+        (N, 2) float32 pixels in image a and (N, 2) float32 pixels in image b; N may be 0
+        (black or featureless image).
+
+    Raises:
+        InputError: malformed images or different sizes.
+    """
+    pixels_a, pixels_b, _ = gftt_klt_with_stats(image_a, image_b, config)
+    return pixels_a, pixels_b
+
+
+def gftt_klt_with_stats(
+    image_a: np.ndarray, image_b: np.ndarray, config: SfmConfig
+) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """As gftt_klt_correspondences, plus counters: keypoints, tracked, rejected_forward_backward."""
+    gray_a = as_gray_u8(image_a, "image_a")
+    gray_b = as_gray_u8(image_b, "image_b")
+    check_same_size(gray_a, gray_b)
+    corners = detect_gftt(gray_a, config)
+    stats = {"keypoints": int(corners.shape[0]), "tracked": 0, "rejected_forward_backward": 0}
+    if corners.shape[0] == 0:
+        return _no_pairs() + (stats,)
+
+    window = (config.klt_window_px, config.klt_window_px)
+    max_level = config.klt_pyramid_levels - 1
+    criteria = (
+        cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS,
+        config.klt_iterations,
+        config.klt_epsilon_px,
+    )
+    # OpenCV's Python binding takes images here, not prebuilt pyramids; it stops adding levels
+    # once a level is smaller than the window, so 13 levels is an upper bound.
+    p0 = corners.reshape(-1, 1, 2)
+    p1, status_fw, _ = cv2.calcOpticalFlowPyrLK(
+        gray_a, gray_b, p0, None, winSize=window, maxLevel=max_level, criteria=criteria
+    )
+    p0_back, status_bw, _ = cv2.calcOpticalFlowPyrLK(
+        gray_b, gray_a, p1, None, winSize=window, maxLevel=max_level, criteria=criteria
+    )
+    fb_error = np.linalg.norm((p0_back - p0).reshape(-1, 2), axis=1)
+    tracked = (status_fw.ravel() == 1) & (status_bw.ravel() == 1)
+    h, w = gray_b.shape
+    p1f = p1.reshape(-1, 2)
+    inside = (p1f[:, 0] >= 0) & (p1f[:, 0] <= w - 1) & (p1f[:, 1] >= 0) & (p1f[:, 1] <= h - 1)
+    tracked &= inside
+    good = tracked & (fb_error <= config.klt_max_forward_backward_px)
+    stats["tracked"] = int(np.count_nonzero(good))
+    stats["rejected_forward_backward"] = int(np.count_nonzero(tracked & ~good))
+    return (
+        np.ascontiguousarray(corners[good], np.float32),
+        np.ascontiguousarray(p1f[good], np.float32),
+        stats,
+    )
+
+
+def detect_gftt(gray_u8: np.ndarray, config: SfmConfig) -> np.ndarray:
+    """Shi-Tomasi corners after the 3x3 Gaussian pre-filter (§II-B-1).
+
+    Args:
+        gray_u8: (H, W) uint8.
+        config: gftt_* settings.
+
+    Returns:
+        (N, 2) float32 pixel coordinates (x, y), strongest first; N = 0 on a flat image.
+    """
+    k = config.gftt_filter_size_px
+    smoothed = cv2.GaussianBlur(gray_u8, (k, k), 0) if k > 1 else gray_u8
+    corners = cv2.goodFeaturesToTrack(
+        smoothed,
+        maxCorners=config.gftt_max_corners,
+        qualityLevel=config.gftt_min_quality,
+        minDistance=config.gftt_min_distance_px,
+        blockSize=config.gftt_block_size_px,
+    )
+    if corners is None:
+        return np.zeros((0, 2), np.float32)
+    return corners.reshape(-1, 2).astype(np.float32)
+
+
+def surf_correspondences(
+    image_a: np.ndarray, image_b: np.ndarray, config: SfmConfig
+) -> Correspondences:
+    """SURF keypoints in both images matched by the nearest-neighbour distance ratio (§II-B-1).
+
+    Args:
+        image_a: (H, W) or (H, W, 3) uint8 (or float in [0, 1]) first image.
+        image_b: the second image, same size.
+        config: surf_* settings and surf_nndr.
+
+    Returns:
+        (N, 2) float32 pixels in image a and (N, 2) float32 pixels in image b; N may be 0.
+
+    Raises:
+        InputError: malformed images or different sizes.
+    """
+    pixels_a, pixels_b, _ = surf_with_stats(image_a, image_b, config)
+    return pixels_a, pixels_b
+
+
+def surf_with_stats(
+    image_a: np.ndarray, image_b: np.ndarray, config: SfmConfig
+) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """As surf_correspondences, plus counters: keypoints (image a), keypoints_b, tracked (= matched)."""
+    gray_a = as_gray_u8(image_a, "image_a")
+    gray_b = as_gray_u8(image_b, "image_b")
+    check_same_size(gray_a, gray_b)
+    surf = Surf(config)
+    kp_a, desc_a = surf.detect_and_compute(gray_a.astype(np.float32) / 255.0)
+    kp_b, desc_b = surf.detect_and_compute(gray_b.astype(np.float32) / 255.0)
+    stats = {"keypoints": int(kp_a.shape[0]), "keypoints_b": int(kp_b.shape[0]), "tracked": 0}
+    if kp_a.shape[0] == 0 or kp_b.shape[0] < 2:
+        return _no_pairs() + (stats,)
+    index_a, index_b = match_nndr(desc_a, desc_b, config.surf_nndr)
+    stats["tracked"] = int(index_a.shape[0])
+    return kp_a[index_a, :2].copy(), kp_b[index_b, :2].copy(), stats
+
+
+def match_nndr(
+    descriptors_a: np.ndarray, descriptors_b: np.ndarray, ratio: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest-neighbour distance ratio matching (Mikolajczyk & Schmid 2005), one-to-one.
+
+    A descriptor of a matches its nearest neighbour in b when that is closer than `ratio` times the
+    second nearest; when several descriptors of a pick the same one of b, only the closest is kept.
+
+    Args:
+        descriptors_a: (Na, D) float32.
+        descriptors_b: (Nb, D) float32, Nb >= 2.
+        ratio: NNDR threshold in (0, 1].
+
+    Returns:
+        (M,) int64 indices into a and (M,) int64 indices into b, sorted by index into a.
+    """
+    matcher = cv2.BFMatcher(cv2.NORM_L2)
+    knn = matcher.knnMatch(descriptors_a.astype(np.float32), descriptors_b.astype(np.float32), k=2)
+    rows = np.array(
+        [(m[0].queryIdx, m[0].trainIdx, m[0].distance, m[1].distance) for m in knn if len(m) == 2],
+        dtype=np.float64,
+    ).reshape(-1, 4)
+    passed = rows[rows[:, 2] < ratio * rows[:, 3]]
+    # One-to-one: for each b keep the closest a (ties broken by lower index a, deterministic).
+    order = np.lexsort((passed[:, 0], passed[:, 2]))
+    passed = passed[order]
+    _, first = np.unique(passed[:, 1], return_index=True)
+    passed = passed[np.sort(first)]
+    passed = passed[np.argsort(passed[:, 0], kind="stable")]
+    return passed[:, 0].astype(np.int64), passed[:, 1].astype(np.int64)
+
+
+def _no_pairs() -> tuple[np.ndarray, np.ndarray]:
+    return np.zeros((0, 2), np.float32), np.zeros((0, 2), np.float32)

@@ -1,0 +1,75 @@
+"""The whole two-view SfM module of the paper (§II-B-1): correspondences, then known-pose triangulation."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from atr.sfm.config import SfmConfig
+from atr.sfm.correspondences import as_gray_u8, check_same_size, gftt_klt_with_stats, surf_with_stats
+from atr.sfm.triangulation import (
+    SfmCloud,
+    triangulate_known_pose,
+    validate_intrinsics,
+    validate_pose,
+)
+
+
+def reconstruct(
+    image_a: np.ndarray,
+    image_b: np.ndarray,
+    K: np.ndarray,
+    T_world_cam_a: np.ndarray,
+    T_world_cam_b: np.ndarray,
+    config: SfmConfig,
+) -> SfmCloud:
+    """Reconstruct a sparse world-frame cloud from one frame pair and its known camera poses.
+
+    Args:
+        image_a: (H, W) or (H, W, 3) BGR uint8 (or float in [0, 1]) image at frame t.
+        image_b: the image at frame t + gap, same size and camera.
+        K: (3, 3) camera matrix (pixels), undistorted images.
+        T_world_cam_a: (4, 4) world-from-camera (OpenCV axes) at frame t, from the IMU.
+        T_world_cam_b: (4, 4) world-from-camera at frame t + gap.
+        config: matcher choice and every threshold.
+
+    Returns:
+        The cloud; stats hold the counts of each stage and "time_<stage>_s" wall times (seconds,
+        diagnostics only). Empty with a reason for a zero-baseline pair or an image without
+        usable keypoints.
+
+    Raises:
+        InputError: malformed or differently sized images, malformed K, non-finite or non-rigid poses.
+    """
+    gray_a = as_gray_u8(image_a, "image_a")
+    gray_b = as_gray_u8(image_b, "image_b")
+    check_same_size(gray_a, gray_b)
+    K = validate_intrinsics(K)
+    T_wa = validate_pose(T_world_cam_a, "T_world_cam_a")
+    T_wb = validate_pose(T_world_cam_b, "T_world_cam_b")
+
+    baseline_m = float(np.linalg.norm(T_wb[:3, 3] - T_wa[:3, 3]))
+    if baseline_m < config.min_baseline_m:
+        # Checked before matching: a hovering pair costs nothing.
+        return SfmCloud.empty(
+            f"zero baseline {baseline_m:.3g} m < min_baseline_m {config.min_baseline_m} m",
+            {"baseline_m": baseline_m},
+        )
+
+    start = time.perf_counter()
+    if config.matcher == "surf":
+        pixels_a, pixels_b, stats = surf_with_stats(gray_a, gray_b, config)
+    else:
+        pixels_a, pixels_b, stats = gftt_klt_with_stats(gray_a, gray_b, config)
+    matched = time.perf_counter()
+    all_stats: dict[str, float | int] = dict(stats)
+    all_stats["time_correspondences_s"] = matched - start
+    if stats["keypoints"] == 0:
+        return SfmCloud.empty("no keypoints in image_a (black or featureless image?)", all_stats)
+
+    cloud = triangulate_known_pose(pixels_a, pixels_b, K, T_wa, T_wb, config)
+    all_stats.update(cloud.stats)
+    all_stats["time_triangulation_s"] = time.perf_counter() - matched
+    cloud.stats = all_stats
+    return cloud

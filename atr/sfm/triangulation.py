@@ -1,0 +1,248 @@
+"""Triangulation of two-view correspondences with a known relative pose (paper §II-B-1).
+
+The relative pose comes from the IMU (eq. 1), not from an essential matrix: with
+T_cam_b_cam_a = inv(T_world_cam_b) @ T_world_cam_a, each correspondence is triangulated linearly
+(cv2.triangulatePoints on normalised coordinates) in camera a's frame, gated, and moved to the world.
+
+Per-point uncertainty (SfmCloud.sigma_m): a pixel error of sigma_px is an angular error
+sigma_theta = sigma_px / f on each ray. Turning one ray by d_theta slides the intersection along the
+other ray by (range along the turned ray) * d_theta / sin(parallax). With independent errors on both
+rays, sigma_m = sigma_theta * sqrt(range_a^2 + range_b^2) / sin(parallax). It is the 1-sigma error
+along the viewing direction (the dominant, depth, component); the lateral error is smaller by about
+sin(parallax). tests/sfm check it against a Monte-Carlo spread.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from atr.errors import InputError
+from atr.sfm.config import SfmConfig
+
+
+@dataclass
+class SfmCloud:
+    """A sparse world-frame point cloud triangulated from one frame pair.
+
+    Attributes:
+        points_world_m: (N, 3) float64, metres, world frame (z up).
+        sigma_m: (N,) float32, metres, 1-sigma depth uncertainty of each point.
+        pixels: (N, 2) float32, pixel coordinates of each point in the first image (x right, y down).
+        stats: counters and figures of the run: "correspondences", "triangulated", "rejected_behind",
+            "rejected_reprojection", "rejected_parallax", "rejected_sigma", "baseline_m", ... .
+        reason: empty when the pair was processed; otherwise why the cloud is empty
+            (e.g. "zero baseline 0.0 m < 0.001 m", "no keypoints in image a").
+    """
+
+    points_world_m: np.ndarray
+    sigma_m: np.ndarray
+    pixels: np.ndarray
+    stats: dict[str, float | int] = field(default_factory=dict)
+    reason: str = ""
+
+    def __len__(self) -> int:
+        return int(self.points_world_m.shape[0])
+
+    @classmethod
+    def empty(cls, reason: str, stats: dict[str, float | int] | None = None) -> SfmCloud:
+        """An empty cloud that says why it is empty.
+
+        Args:
+            reason: human-readable cause, naming the value that made the pair unusable.
+            stats: counters gathered before giving up.
+
+        Returns:
+            A cloud with zero points and the given reason.
+        """
+        return cls(
+            points_world_m=np.zeros((0, 3), np.float64),
+            sigma_m=np.zeros(0, np.float32),
+            pixels=np.zeros((0, 2), np.float32),
+            stats=dict(stats or {}),
+            reason=reason,
+        )
+
+
+def validate_pose(T: np.ndarray, name: str) -> np.ndarray:
+    """Check a 4x4 rigid transform and return it as float64.
+
+    Args:
+        T: (4, 4) homogeneous rigid transform.
+        name: the argument's name, used in the error message.
+
+    Returns:
+        (4, 4) float64 copy of T.
+
+    Raises:
+        InputError: wrong shape, non-finite entries, a bottom row other than [0, 0, 0, 1], or a
+            rotation block that is not orthonormal with determinant +1.
+    """
+    T = np.asarray(T, dtype=np.float64)
+    if T.shape != (4, 4):
+        raise InputError(f"{name} has shape {T.shape}, expected (4, 4)")
+    if not np.all(np.isfinite(T)):
+        raise InputError(f"{name} has non-finite entries: {T.tolist()}")
+    if not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0], atol=1e-9):
+        raise InputError(f"{name} bottom row {T[3].tolist()} must be [0, 0, 0, 1]")
+    R = T[:3, :3]
+    # Tolerance allows float32 round trips through messages.
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-5) or np.linalg.det(R) < 0.0:
+        raise InputError(f"{name} rotation block is not a proper rotation: {R.tolist()}")
+    return T
+
+
+def validate_intrinsics(K: np.ndarray) -> np.ndarray:
+    """Check a pinhole camera matrix and return it as float64.
+
+    Args:
+        K: (3, 3) [[fx, s, cx], [0, fy, cy], [0, 0, 1]], pixels.
+
+    Returns:
+        (3, 3) float64 copy of K.
+
+    Raises:
+        InputError: wrong shape, non-finite entries, non-positive focal lengths, bad last row.
+    """
+    K = np.asarray(K, dtype=np.float64)
+    if K.shape != (3, 3):
+        raise InputError(f"K has shape {K.shape}, expected (3, 3)")
+    if not np.all(np.isfinite(K)):
+        raise InputError(f"K has non-finite entries: {K.tolist()}")
+    if not (K[0, 0] > 0.0 and K[1, 1] > 0.0):
+        raise InputError(f"K focal lengths fx={K[0, 0]}, fy={K[1, 1]} must be > 0")
+    if not np.allclose(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0.0:
+        raise InputError(f"K {K.tolist()} is not an upper-triangular pinhole matrix with K[2] = [0, 0, 1]")
+    return K
+
+
+def _validate_pixels(pixels_a: np.ndarray, pixels_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    a = np.asarray(pixels_a, dtype=np.float64)
+    b = np.asarray(pixels_b, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 2 or b.shape != a.shape:
+        raise InputError(
+            f"pixels_a {a.shape} and pixels_b {b.shape} must both be (N, 2) with the same N"
+        )
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise InputError("pixels_a / pixels_b contain non-finite coordinates")
+    return a, b
+
+
+def relative_camera_pose(T_world_cam_a: np.ndarray, T_world_cam_b: np.ndarray) -> np.ndarray:
+    """Camera b from camera a, R*_cam of eq. (1): inv(T_world_cam_b) @ T_world_cam_a.
+
+    Args:
+        T_world_cam_a: (4, 4) float64, world-from-camera at the first frame.
+        T_world_cam_b: (4, 4) float64, world-from-camera at the second frame.
+
+    Returns:
+        (4, 4) float64 T_cam_b_cam_a: maps points in camera a's frame to camera b's frame.
+    """
+    return np.linalg.inv(T_world_cam_b) @ T_world_cam_a
+
+
+def triangulate_known_pose(
+    pixels_a: np.ndarray,
+    pixels_b: np.ndarray,
+    K: np.ndarray,
+    T_world_cam_a: np.ndarray,
+    T_world_cam_b: np.ndarray,
+    config: SfmConfig,
+) -> SfmCloud:
+    """Triangulate correspondences with the known camera poses and gate the results.
+
+    Args:
+        pixels_a: (N, 2) float pixels in the first image.
+        pixels_b: (N, 2) float pixels of the same scene points in the second image.
+        K: (3, 3) camera matrix (pixels), the same camera for both images, no distortion.
+        T_world_cam_a: (4, 4) world-from-camera (OpenCV camera axes) at the first image.
+        T_world_cam_b: (4, 4) world-from-camera at the second image.
+        config: gates (reprojection, parallax, relative sigma) and the pixel noise.
+
+    Returns:
+        The world-frame cloud of points that pass every gate, with per-point sigma. Empty, with a
+        reason, for a zero-baseline pair or too few correspondences.
+
+    Raises:
+        InputError: malformed pixels, K or poses (shape, non-finite, not rigid).
+    """
+    a, b = _validate_pixels(pixels_a, pixels_b)
+    K = validate_intrinsics(K)
+    T_wa = validate_pose(T_world_cam_a, "T_world_cam_a")
+    T_wb = validate_pose(T_world_cam_b, "T_world_cam_b")
+
+    n = a.shape[0]
+    baseline_m = float(np.linalg.norm(T_wb[:3, 3] - T_wa[:3, 3]))
+    stats: dict[str, float | int] = {"correspondences": n, "baseline_m": baseline_m}
+    if baseline_m < config.min_baseline_m:
+        return SfmCloud.empty(
+            f"zero baseline {baseline_m:.3g} m < min_baseline_m {config.min_baseline_m} m", stats
+        )
+    if n < config.min_correspondences:
+        return SfmCloud.empty(
+            f"{n} correspondences < min_correspondences {config.min_correspondences}", stats
+        )
+
+    T_ba = relative_camera_pose(T_wa, T_wb)
+    R_ba, t_ba = T_ba[:3, :3], T_ba[:3, 3]
+    K_inv = np.linalg.inv(K)
+    rays_a = np.c_[a, np.ones(n)] @ K_inv.T  # normalised image coordinates, z = 1
+    rays_b = np.c_[b, np.ones(n)] @ K_inv.T
+    P_a = np.eye(3, 4)
+    P_b = np.c_[R_ba, t_ba]
+    X_h = cv2.triangulatePoints(P_a, P_b, rays_a[:, :2].T.copy(), rays_b[:, :2].T.copy())
+    w = X_h[3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        X_a = (X_h[:3] / w).T  # (N, 3) in camera a
+    finite = np.all(np.isfinite(X_a), axis=1)
+    X_a[~finite] = 0.0
+    X_b = X_a @ R_ba.T + t_ba
+
+    in_front = finite & (X_a[:, 2] > 0.0) & (X_b[:, 2] > 0.0)
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        proj_a = (X_a @ K.T)[:, :2] / X_a[:, 2:3]
+        proj_b = (X_b @ K.T)[:, :2] / X_b[:, 2:3]
+    reproj_px = np.maximum(np.linalg.norm(proj_a - a, axis=1), np.linalg.norm(proj_b - b, axis=1))
+    reproj_ok = reproj_px <= config.max_reprojection_px
+
+    # Rays from each camera centre to the point (camera a's frame); camera b's centre is -R^T t.
+    centre_b = -R_ba.T @ t_ba
+    v_a = X_a
+    v_b = X_a - centre_b
+    range_a = np.linalg.norm(v_a, axis=1)
+    range_b = np.linalg.norm(v_b, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos_par = np.einsum("ij,ij->i", v_a, v_b) / (range_a * range_b)
+    parallax_rad = np.arccos(np.clip(np.nan_to_num(cos_par, nan=1.0), -1.0, 1.0))
+    parallax_ok = parallax_rad >= np.deg2rad(config.min_parallax_deg)
+
+    focal_px = 0.5 * (K[0, 0] + K[1, 1])
+    sigma_theta = config.pixel_sigma_px / focal_px
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sigma = sigma_theta * np.sqrt(range_a**2 + range_b**2) / np.sin(parallax_rad)
+        sigma_ok = sigma <= config.max_relative_sigma * range_a
+
+    # Each rejected point is counted once, at the first gate it fails.
+    keep = in_front & reproj_ok & parallax_ok & sigma_ok
+    stats["rejected_behind"] = int(np.count_nonzero(~in_front))
+    stats["rejected_reprojection"] = int(np.count_nonzero(in_front & ~reproj_ok))
+    stats["rejected_parallax"] = int(np.count_nonzero(in_front & reproj_ok & ~parallax_ok))
+    stats["rejected_sigma"] = int(np.count_nonzero(in_front & reproj_ok & parallax_ok & ~sigma_ok))
+    stats["triangulated"] = int(np.count_nonzero(keep))
+    if np.any(keep):
+        stats["median_parallax_deg"] = float(np.rad2deg(np.median(parallax_rad[keep])))
+        stats["median_range_m"] = float(np.median(range_a[keep]))
+        stats["median_sigma_m"] = float(np.median(sigma[keep]))
+    else:
+        return SfmCloud.empty("no correspondence passed the triangulation gates", stats)
+
+    points_world = X_a[keep] @ T_wa[:3, :3].T + T_wa[:3, 3]
+    return SfmCloud(
+        points_world_m=np.ascontiguousarray(points_world, dtype=np.float64),
+        sigma_m=sigma[keep].astype(np.float32),
+        pixels=a[keep].astype(np.float32),
+        stats=stats,
+    )

@@ -1,0 +1,103 @@
+"""The whole two-view module on rendered images of a textured ground plane with exact poses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sfm_scenes import R_WORLD_NADIR, PlaneScene, pose, rot_x, rot_z
+
+from atr.errors import InputError
+from atr.sfm import SfmConfig, gftt_klt_correspondences, reconstruct, surf_correspondences
+
+
+def oblique_pair(baseline_m: float = 4.0) -> tuple[np.ndarray, np.ndarray]:
+    T_a = pose(R_WORLD_NADIR @ rot_x(0.25), np.array([0.0, 0.0, 50.0]))
+    T_b = pose(rot_z(0.03) @ R_WORLD_NADIR @ rot_x(0.22), np.array([baseline_m, 0.5, 50.3]))
+    return T_a, T_b
+
+
+def true_pixel_in_b(scene: PlaneScene, pixels_a, T_a, T_b) -> np.ndarray:
+    """Where a pixel of image a lands in image b, through the plane z = 0."""
+    K_inv = np.linalg.inv(scene.K)
+    rays = np.c_[pixels_a, np.ones(len(pixels_a))] @ K_inv.T @ T_a[:3, :3].T
+    depth = -T_a[2, 3] / rays[:, 2]
+    X = T_a[:3, 3] + rays * depth[:, None]
+    T_bw = np.linalg.inv(T_b)
+    p = X @ T_bw[:3, :3].T + T_bw[:3, 3]
+    uv = p @ scene.K.T
+    return uv[:, :2] / uv[:, 2:3]
+
+
+@pytest.mark.parametrize("matcher", ["gftt", "surf"])
+def test_correspondences_follow_the_plane_homography(plane_scene: PlaneScene, matcher: str) -> None:
+    T_a, T_b = oblique_pair()
+    img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
+    find = gftt_klt_correspondences if matcher == "gftt" else surf_correspondences
+    pa, pb = find(img_a, img_b, SfmConfig(matcher=matcher))
+    assert pa.dtype == np.float32 and pb.shape == pa.shape
+    assert len(pa) > (1000 if matcher == "gftt" else 100)
+    err = np.linalg.norm(pb - true_pixel_in_b(plane_scene, pa, T_a, T_b), axis=1)
+    assert np.median(err) < 0.3
+    assert np.mean(err < 2.0) > (0.99 if matcher == "gftt" else 0.9)
+
+
+@pytest.mark.parametrize("matcher", ["gftt", "surf"])
+def test_reconstructed_points_lie_on_the_plane(plane_scene: PlaneScene, matcher: str) -> None:
+    T_a, T_b = oblique_pair()
+    img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
+    cloud = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SfmConfig(matcher=matcher))
+    assert cloud.reason == ""
+    z = cloud.points_world_m[:, 2]
+    assert len(cloud) > (1000 if matcher == "gftt" else 100)
+    assert np.median(np.abs(z)) < 0.15  # 50 m range, 4 m baseline
+    # The predicted sigma is honest: errors beyond 4 sigma are rare.
+    assert np.mean(np.abs(z) > 4 * cloud.sigma_m) < 0.05
+    assert cloud.stats["triangulated"] == len(cloud)
+    assert cloud.stats["keypoints"] >= cloud.stats["tracked"] >= len(cloud)
+
+
+def test_reconstruct_is_deterministic(plane_scene: PlaneScene) -> None:
+    T_a, T_b = oblique_pair()
+    img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
+    for matcher in ("gftt", "surf"):
+        one = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SfmConfig(matcher=matcher))
+        two = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SfmConfig(matcher=matcher))
+        assert one.points_world_m.tobytes() == two.points_world_m.tobytes()
+        assert one.sigma_m.tobytes() == two.sigma_m.tobytes()
+
+
+@pytest.mark.parametrize("matcher", ["gftt", "surf"])
+@pytest.mark.parametrize("fill", [0, 128])
+def test_black_or_featureless_image_gives_empty_cloud(plane_scene, matcher: str, fill: int) -> None:
+    T_a, T_b = oblique_pair()
+    flat = np.full((480, 640), fill, np.uint8)
+    cloud = reconstruct(flat, plane_scene.render(T_b), plane_scene.K, T_a, T_b,
+                        SfmConfig(matcher=matcher))
+    assert len(cloud) == 0 and cloud.reason
+    cloud = reconstruct(plane_scene.render(T_a), flat, plane_scene.K, T_a, T_b,
+                        SfmConfig(matcher=matcher))
+    assert len(cloud) == 0 and cloud.reason
+
+
+def test_zero_baseline_pair_gives_empty_cloud(plane_scene: PlaneScene) -> None:
+    T_a, _ = oblique_pair()
+    img = plane_scene.render(T_a)
+    cloud = reconstruct(img, img, plane_scene.K, T_a, T_a, SfmConfig())
+    assert len(cloud) == 0 and "baseline" in cloud.reason
+
+
+def test_bad_images_raise_input_error(plane_scene: PlaneScene) -> None:
+    T_a, T_b = oblique_pair()
+    img = plane_scene.render(T_a)
+    with pytest.raises(InputError, match="sizes differ"):
+        reconstruct(img, img[:-1], plane_scene.K, T_a, T_b, SfmConfig())
+    with pytest.raises(InputError, match="shape"):
+        reconstruct(np.zeros((0, 0), np.uint8), img, plane_scene.K, T_a, T_b, SfmConfig())
+    bad = img.astype(np.float32) / 255
+    bad[0, 0] = np.nan
+    with pytest.raises(InputError, match="non-finite"):
+        reconstruct(bad, img, plane_scene.K, T_a, T_b, SfmConfig())
+    T_nan = T_b.copy()
+    T_nan[1, 1] = np.inf
+    with pytest.raises(InputError, match="T_world_cam_b"):
+        reconstruct(img, img, plane_scene.K, T_a, T_nan, SfmConfig())

@@ -1,0 +1,159 @@
+"""Known-pose triangulation: exact geometry, gates, uncertainty, broken inputs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sfm_scenes import R_WORLD_NADIR, pose, rot_x, rot_z
+
+from atr.errors import ConfigError, InputError
+from atr.sfm import SfmConfig, relative_camera_pose, triangulate_known_pose
+
+K = np.array([[800.0, 0.0, 640.0], [0.0, 800.0, 480.0], [0.0, 0.0, 1.0]])
+
+
+def project(points_world: np.ndarray, T_world_cam: np.ndarray) -> np.ndarray:
+    T_cam_world = np.linalg.inv(T_world_cam)
+    p = points_world @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]
+    uv = p @ K.T
+    return uv[:, :2] / uv[:, 2:3]
+
+
+def two_cameras(baseline_m: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
+    T_a = pose(R_WORLD_NADIR @ rot_x(0.2), np.array([0.0, 0.0, 50.0]))
+    T_b = pose(rot_z(0.05) @ R_WORLD_NADIR @ rot_x(0.18), np.array([baseline_m, 1.0, 50.5]))
+    return T_a, T_b
+
+
+def ground_points(n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.c_[rng.uniform(-15, 15, n), rng.uniform(-25, 5, n), rng.uniform(0.0, 3.0, n)]
+
+
+def test_relative_pose_is_eq1_identity() -> None:
+    T_a, T_b = two_cameras()
+    T_ba = relative_camera_pose(T_a, T_b)
+    np.testing.assert_allclose(T_b @ T_ba, T_a, atol=1e-12)
+
+
+def test_exact_projections_triangulate_exactly() -> None:
+    T_a, T_b = two_cameras()
+    X = ground_points(500, seed=1)
+    cloud = triangulate_known_pose(project(X, T_a), project(X, T_b), K, T_a, T_b, SfmConfig())
+    assert cloud.stats["triangulated"] == 500
+    np.testing.assert_allclose(cloud.points_world_m, X, atol=1e-6)
+    np.testing.assert_allclose(cloud.pixels, project(X, T_a), atol=1e-3)
+    assert cloud.points_world_m.dtype == np.float64 and cloud.sigma_m.dtype == np.float32
+
+
+def test_sigma_matches_monte_carlo_spread() -> None:
+    """Predicted 1-sigma position error vs the spread under Gaussian pixel noise of pixel_sigma_px."""
+    config = SfmConfig(max_relative_sigma=1.0)
+    T_a, T_b = two_cameras()
+    X = ground_points(200, seed=2)
+    rng = np.random.default_rng(3)
+    errors = []
+    sigma = None
+    for _ in range(60):
+        pa = project(X, T_a) + rng.normal(0.0, config.pixel_sigma_px, (len(X), 2))
+        pb = project(X, T_b) + rng.normal(0.0, config.pixel_sigma_px, (len(X), 2))
+        cloud = triangulate_known_pose(pa, pb, K, T_a, T_b, SfmConfig(max_relative_sigma=1.0,
+                                                                      k_max_reprojection=100.0))
+        assert len(cloud) == len(X)
+        errors.append(np.linalg.norm(cloud.points_world_m - X, axis=1))
+        sigma = cloud.sigma_m
+    rms = np.sqrt(np.mean(np.square(errors), axis=0))
+    ratio = np.median(rms / sigma)
+    # sigma is the depth error, the dominant part: the RMS 3D error is close to it.
+    assert 0.7 < ratio < 1.3, ratio
+
+
+def test_points_behind_a_camera_are_rejected() -> None:
+    T_a, T_b = two_cameras()
+    X = ground_points(50, seed=4)
+    pa, pb = project(X, T_a), project(X, T_b)
+    # Swap the order of the cameras' poses: the same pixels now meet behind the cameras or not at all.
+    mirrored_b = T_b.copy()
+    mirrored_b[:3, 3] = 2 * T_a[:3, 3] - T_b[:3, 3]
+    cloud = triangulate_known_pose(pa, pb, K, T_a, mirrored_b, SfmConfig())
+    assert len(cloud) == 0
+    assert cloud.stats["rejected_behind"] + cloud.stats["rejected_reprojection"] == 50
+
+
+def test_mismatched_correspondences_fail_the_reprojection_gate() -> None:
+    T_a, T_b = two_cameras()
+    X = ground_points(100, seed=5)
+    pa, pb = project(X, T_a), project(X, T_b)
+    pb[:50] += np.array([0.0, 15.0])  # off the epipolar line by ~15 px
+    cloud = triangulate_known_pose(pa, pb, K, T_a, T_b, SfmConfig())
+    assert cloud.stats["triangulated"] == 50
+    assert cloud.stats["rejected_reprojection"] >= 45
+
+
+def test_low_parallax_points_are_rejected() -> None:
+    T_a, _ = two_cameras()
+    T_b = T_a.copy()
+    T_b[:3, 3] += [0.05, 0.0, 0.0]  # 5 cm baseline at ~50 m: parallax ~0.06 deg
+    X = ground_points(100, seed=6)
+    cloud = triangulate_known_pose(project(X, T_a), project(X, T_b), K, T_a, T_b, SfmConfig())
+    assert len(cloud) == 0
+    assert cloud.stats["rejected_parallax"] == 100
+    assert "gates" in cloud.reason
+
+
+def test_zero_baseline_gives_empty_cloud_with_reason() -> None:
+    T_a, _ = two_cameras()
+    X = ground_points(20, seed=7)
+    p = project(X, T_a)
+    cloud = triangulate_known_pose(p, p, K, T_a, T_a.copy(), SfmConfig())
+    assert len(cloud) == 0 and "baseline" in cloud.reason
+    assert cloud.points_world_m.shape == (0, 3)
+
+
+def test_too_few_correspondences_give_empty_cloud() -> None:
+    T_a, T_b = two_cameras()
+    cloud = triangulate_known_pose(np.zeros((0, 2)), np.zeros((0, 2)), K, T_a, T_b, SfmConfig())
+    assert len(cloud) == 0 and "correspondences" in cloud.reason
+
+
+@pytest.mark.parametrize(
+    ("mutate", "message"),
+    [
+        (lambda T: T.__setitem__((0, 3), np.nan), "non-finite"),
+        (lambda T: T.__setitem__((3, 0), 1.0), "bottom row"),
+        (lambda T: T.__setitem__((0, 0), 2.0), "rotation"),
+    ],
+)
+def test_bad_pose_raises_input_error_naming_it(mutate, message: str) -> None:
+    T_a, T_b = two_cameras()
+    mutate(T_b)
+    p = np.zeros((10, 2))
+    with pytest.raises(InputError, match=f"T_world_cam_b.*{message}|{message}"):
+        triangulate_known_pose(p, p, K, T_a, T_b, SfmConfig())
+
+
+def test_bad_intrinsics_and_pixels_raise() -> None:
+    T_a, T_b = two_cameras()
+    p = np.zeros((10, 2))
+    with pytest.raises(InputError, match="focal"):
+        triangulate_known_pose(p, p, np.diag([0.0, 800.0, 1.0]), T_a, T_b, SfmConfig())
+    with pytest.raises(InputError, match="pixels_a"):
+        triangulate_known_pose(p, np.zeros((9, 2)), K, T_a, T_b, SfmConfig())
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"matcher": "orb"},
+        {"gftt_min_quality": 0.0},
+        {"klt_window_px": 10},
+        {"surf_scale_levels": 2},
+        {"surf_nndr": 1.5},
+        {"pixel_sigma_px": -1.0},
+        {"min_parallax_deg": 95.0},
+        {"pair_gap_frames": 0},
+    ],
+)
+def test_config_refuses_bad_values(kwargs: dict) -> None:
+    with pytest.raises(ConfigError, match=next(iter(kwargs))):
+        SfmConfig(**kwargs)
