@@ -96,3 +96,92 @@ def window_errors(
         np.asarray(trans),
         np.asarray(dist),
     )
+
+
+@dataclass(frozen=True)
+class GroundTruthErrors:
+    """The ground truth's own errors, measured from the data without the integrator under test.
+
+    Attributes:
+        world_tilt_rad: angle between the ground truth's world z and the gravity measured at rest
+            (mean of R_world_imu (f - b_a) over a static segment), radians.
+        gyro_bias_error_radps: |mean gyro at rest - ground-truth gyro bias|, rad/s (Earth rate,
+            7.3e-5 rad/s, is below it and counted in).
+        velocity_error_mps: RMS of the ground-truth speed at rest, m/s.
+        position_noise_m: per-sample position noise at rest: 3-D norm of the per-axis robust std of
+            second differences / sqrt(6), metres.
+        rotation_noise_rad: per-sample rotation noise at rest, the same on rotation vectors, radians.
+    """
+
+    world_tilt_rad: float
+    gyro_bias_error_radps: float
+    velocity_error_mps: float
+    position_noise_m: float
+    rotation_noise_rad: float
+
+
+def ground_truth_errors(
+    imu_t_ns: np.ndarray,
+    gyro_radps: np.ndarray,
+    accel_mps2: np.ndarray,
+    gt_t_ns: np.ndarray,
+    gt_R_world_imu: np.ndarray,
+    gt_p_world_m: np.ndarray,
+    gt_v_world_mps: np.ndarray,
+    gt_gyro_bias_radps: np.ndarray,
+    gt_accel_bias_mps2: np.ndarray,
+    static_until_ns: int,
+) -> GroundTruthErrors:
+    """Estimate the ground truth's own error terms (see GroundTruthErrors).
+
+    Args:
+        static_until_ns: the vehicle is at rest from the first ground-truth instant to this stamp;
+            every term is measured over that segment.
+    """
+    i = 0  # the static segment starts at the first ground-truth row
+    m = (imu_t_ns >= gt_t_ns[0]) & (imu_t_ns <= static_until_ns)
+    if m.sum() < 10:
+        raise InputError(f"static segment up to {static_until_ns} ns holds {int(m.sum())} IMU samples")
+    f_world = (gt_R_world_imu[i] @ (accel_mps2[m] - gt_accel_bias_mps2[i]).T).T.mean(axis=0)
+    tilt = float(np.arctan2(np.hypot(f_world[0], f_world[1]), f_world[2]))
+    bias_err = float(np.linalg.norm(gyro_radps[m].mean(axis=0) - gt_gyro_bias_radps[i]))
+    # At rest the true velocity is zero and the true pose constant: what the ground truth shows is its error.
+    k = int(np.searchsorted(gt_t_ns, static_until_ns, side="right"))
+    if k < 5:
+        raise InputError(f"static segment up to {static_until_ns} ns holds {k} ground-truth rows (need 5)")
+    vel_err = float(np.sqrt(np.mean(np.sum(gt_v_world_mps[:k] ** 2, axis=1))))
+    p = gt_p_world_m[:k]
+    d2 = p[2:] - 2.0 * p[1:-1] + p[:-2]
+    pos_noise = float(np.linalg.norm(1.4826 * np.median(np.abs(d2), axis=0)) / np.sqrt(6.0))
+    Rs = gt_R_world_imu[:k]
+    rv = Rotation.from_matrix(np.einsum("ji,njk->nik", Rs[0], Rs)).as_rotvec()
+    d2r = rv[2:] - 2.0 * rv[1:-1] + rv[:-2]
+    rot_noise = float(np.linalg.norm(1.4826 * np.median(np.abs(d2r), axis=0)) / np.sqrt(6.0))
+    return GroundTruthErrors(tilt, bias_err, vel_err, pos_noise, rot_noise)
+
+
+def error_bound(
+    window_s: float,
+    gyro_noise_density: float,
+    accel_noise_density: float,
+    gt: GroundTruthErrors,
+    gravity_mps2: float,
+) -> tuple[float, float]:
+    """One-sigma-scale prediction of the rotation (rad) and translation (m) error of a window.
+
+    rotation = sqrt(3) sigma_g sqrt(T)                  angle random walk, 3 axes
+             + db_g T                                    ground-truth gyro bias error
+             + sqrt(2) sigma_R,gt                        ground-truth rotation noise at both ends
+    translation = sqrt(3) sigma_a T^1.5 / sqrt(3)        velocity random walk, 3 axes
+                + g tilt T^2 / 2                         ground-truth world z not along gravity
+                + g db_g T^3 / 6                         tilt growing from the gyro bias error
+                + dv_gt T + sqrt(2) sigma_p,gt           ground-truth velocity and position errors
+    """
+    T = window_s
+    rot = np.sqrt(3.0) * gyro_noise_density * np.sqrt(T) + gt.gyro_bias_error_radps * T
+    rot += np.sqrt(2.0) * gt.rotation_noise_rad
+    trans = accel_noise_density * T**1.5
+    trans += gravity_mps2 * np.sin(gt.world_tilt_rad) * T**2 / 2.0
+    trans += gravity_mps2 * gt.gyro_bias_error_radps * T**3 / 6.0
+    trans += gt.velocity_error_mps * T + np.sqrt(2.0) * gt.position_noise_m
+    return float(rot), float(trans)
