@@ -119,6 +119,7 @@ class Node:
         ]
         self._queryables: list[Any] = []
         self._heartbeat_s = heartbeat_s
+        self._state = "starting"
         self._heartbeat = threading.Thread(target=self._beat, name="heartbeat", daemon=True)
         self._heartbeat.start()
 
@@ -140,6 +141,11 @@ class Node:
             self._queue.put_nowait(None)
         except queue.Full:
             pass
+
+    def ready(self) -> None:
+        """Declare the service ready (status `running`): launchers wait for this before sending inputs."""
+        self._state = "running"
+        self._publish_status("running")
 
     @property
     def stopping(self) -> bool:
@@ -362,10 +368,10 @@ class Node:
         )
 
     def _beat(self) -> None:
-        state = "starting"
-        while not self._stop.wait(self._heartbeat_s if state == "running" else 0.05):
+        while True:
             try:
-                self._publish_status(state)
+                self._publish_status(self._state)
             except Exception:  # a heartbeat failure must not end the service
                 log.debug("status not sent", exc_info=True)
-            state = "running"
+            if self._stop.wait(self._heartbeat_s if self._state == "running" else 0.2):
+                return

@@ -1,0 +1,158 @@
+"""The one typed configuration of the system: each subsystem's config, with the paper's values as defaults.
+
+Every group is a frozen dataclass defined next to its algorithm (`atr/<pkg>/config.py`) and validated in its
+constructor. This module gathers them and applies overrides written as `group.field=value`, the form used by
+`--set` on the command line, by the layouts in `compose/`, and by YAML files (nested maps).
+
+    config = load_config(overrides=["sfm.matcher=surf", "recognition.descriptor=fpfh"])
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+
+from atr.errors import ConfigError
+from atr.imu.config import ImuConfig
+from atr.recognition.config import RecognitionConfig
+from atr.sfm.config import SfmConfig
+from atr.sim.config import SimConfig
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """How the services are wired around the algorithms.
+
+    Attributes:
+        targets: target names the template store serves and the matcher looks for: the T-72 and the
+            simulator's confusers, so the matcher says which vehicle it sees (recognition, not detection).
+        target_meshes: extra CAD mesh files (PLY/OBJ/STL/GLB, z up, metres, x forward); each is a target
+            named after its file stem.
+        cloud_source: which cloud the matcher reads: "sfm" (the paper's pipeline) or "lidar" (the baseline).
+        template_timeout_s: how long the matcher waits for a template query before reporting an error.
+    """
+
+    targets: tuple[str, ...] = ("t72", "ifv", "truck6x6")
+    target_meshes: tuple[str, ...] = ()
+    cloud_source: Literal["sfm", "lidar"] = "sfm"
+    template_timeout_s: float = 600.0
+
+    def __post_init__(self) -> None:
+        if not self.targets and not self.target_meshes:
+            raise ConfigError("pipeline.targets and pipeline.target_meshes are both empty: nothing to recognise")
+        if self.template_timeout_s <= 0:
+            raise ConfigError(f"pipeline.template_timeout_s {self.template_timeout_s} must be > 0")
+
+
+@dataclass(frozen=True)
+class AtrConfig:
+    """Everything a flight's processing depends on; saved with every result."""
+
+    pipeline: PipelineConfig = field(default_factory=PipelineConfig)
+    sim: SimConfig = field(default_factory=SimConfig)
+    # The camera-IMU extrinsic is a property of the camera head; by default it is the simulated head's.
+    imu: ImuConfig = field(default_factory=lambda: ImuConfig(T_imu_cam=SimConfig().T_imu_cam))
+    sfm: SfmConfig = field(default_factory=SfmConfig)
+    recognition: RecognitionConfig = field(default_factory=RecognitionConfig)
+
+
+def _coerce(value: Any, annotation: Any, where: str) -> Any:
+    origin = typing.get_origin(annotation)
+    if origin is typing.Literal:
+        if value not in typing.get_args(annotation):
+            raise ConfigError(f"{where}={value!r}; expected one of {typing.get_args(annotation)}")
+        return value
+    if origin in (typing.Union, types.UnionType):
+        options = typing.get_args(annotation)
+        if value is None and type(None) in options:
+            return None
+        for option in options:
+            if option is type(None):
+                continue
+            try:
+                return _coerce(value, option, where)
+            except ConfigError:
+                continue
+        raise ConfigError(f"{where}={value!r} fits none of {options}")
+    if origin is tuple:
+        if not isinstance(value, list | tuple):
+            raise ConfigError(f"{where}={value!r}; expected a list")
+        args = typing.get_args(annotation)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_coerce(v, args[0], where) for v in value)
+        return tuple(_coerce(v, a, where) for v, a in zip(value, args, strict=True))
+    if annotation is float and isinstance(value, int | float) and not isinstance(value, bool):
+        return float(value)
+    if annotation in (int, str, bool) and not isinstance(value, annotation):
+        raise ConfigError(f"{where}={value!r}; expected {annotation.__name__}")
+    return value
+
+
+def _with(config: Any, path: list[str], value: Any, where: str) -> Any:
+    if not dataclasses.is_dataclass(config):
+        raise ConfigError(f"{where}: {type(config).__name__} has no fields")
+    hints = typing.get_type_hints(type(config))
+    name = path[0]
+    if name not in hints:
+        fields = sorted(f.name for f in dataclasses.fields(config))
+        raise ConfigError(f"{where}: unknown field {name!r}; expected one of {fields}")
+    if len(path) > 1:
+        new = _with(getattr(config, name), path[1:], value, where)
+    elif isinstance(value, dict):
+        new = getattr(config, name)
+        for key, item in value.items():
+            new = _with(new, [key], item, f"{where}.{key}")
+    else:
+        new = _coerce(value, hints[name], where)
+    return dataclasses.replace(config, **{name: new})
+
+
+def apply_overrides(config: Any, overrides: list[str] | dict[str, Any]) -> Any:
+    """A copy of dataclass `config` with `a.b=value` overrides (values parsed as YAML scalars/lists).
+
+    Raises:
+        ConfigError: unknown field, value of the wrong type, or a value its group's validation refuses.
+    """
+    items = overrides.items() if isinstance(overrides, dict) else [_split(o) for o in overrides]
+    for dotted, value in items:
+        config = _with(config, dotted.split("."), value, dotted)
+    return config
+
+
+def _split(override: str) -> tuple[str, Any]:
+    if "=" not in override:
+        raise ConfigError(f"override {override!r} must look like group.field=value")
+    dotted, text = override.split("=", 1)
+    try:
+        return dotted.strip(), yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"override {override!r}: {exc}") from exc
+
+
+def load_config(path: str | Path | None = None, overrides: list[str] | None = None) -> AtrConfig:
+    """The defaults, then a YAML file of nested groups, then `group.field=value` overrides.
+
+    Raises:
+        ConfigError: unreadable file or invalid value.
+    """
+    config = AtrConfig()
+    if path is not None:
+        try:
+            data = yaml.safe_load(Path(path).read_text()) or {}
+        except (OSError, yaml.YAMLError) as exc:
+            raise ConfigError(f"config file {path}: {exc}") from exc
+        if not isinstance(data, dict):
+            raise ConfigError(f"config file {path} must hold a map of groups")
+        config = apply_overrides(config, data)
+    return apply_overrides(config, overrides or [])
+
+
+def to_dict(config: Any) -> dict[str, Any]:
+    """The config as plain data (for saving next to results)."""
+    return dataclasses.asdict(config)
