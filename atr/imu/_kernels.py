@@ -52,8 +52,41 @@ def _quat_to_matrix(q: np.ndarray, R: np.ndarray) -> None:
 
 
 @numba.njit(cache=True)
+def matrix_to_quat(R: np.ndarray, q: np.ndarray) -> None:
+    """Rotation matrix -> unit quaternion (w, x, y, z), Shepperd's method (stable for every angle)."""
+    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    if tr > R[0, 0] and tr > R[1, 1] and tr > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + tr)
+        q[0] = 0.25 * s
+        q[1] = (R[2, 1] - R[1, 2]) / s
+        q[2] = (R[0, 2] - R[2, 0]) / s
+        q[3] = (R[1, 0] - R[0, 1]) / s
+    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
+        q[0] = (R[2, 1] - R[1, 2]) / s
+        q[1] = 0.25 * s
+        q[2] = (R[0, 1] + R[1, 0]) / s
+        q[3] = (R[0, 2] + R[2, 0]) / s
+    elif R[1, 1] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
+        q[0] = (R[0, 2] - R[2, 0]) / s
+        q[1] = (R[0, 1] + R[1, 0]) / s
+        q[2] = 0.25 * s
+        q[3] = (R[1, 2] + R[2, 1]) / s
+    else:
+        s = 2.0 * np.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
+        q[0] = (R[1, 0] - R[0, 1]) / s
+        q[1] = (R[0, 2] + R[2, 0]) / s
+        q[2] = (R[1, 2] + R[2, 1]) / s
+        q[3] = 0.25 * s
+    norm = np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+    for i in range(4):
+        q[i] /= norm
+
+
+@numba.njit(cache=True)
 def strapdown_kernel(
-    q0: np.ndarray,
+    R0: np.ndarray,
     p0: np.ndarray,
     v0: np.ndarray,
     gyro_bias: np.ndarray,
@@ -65,8 +98,10 @@ def strapdown_kernel(
     q_out: np.ndarray,
     p_out: np.ndarray,
     v_out: np.ndarray,
+    R_end: np.ndarray,
 ) -> None:
-    """Strapdown propagation; writes the state at every sample into q_out (N+1, 4), p_out, v_out (N+1, 3).
+    """Strapdown propagation from R0 (3, 3); writes the state at every sample into q_out (N+1, 4)
+    (w, x, y, z), p_out, v_out (N+1, 3), and the final attitude into R_end (3, 3).
 
     Attitude: q_{k+1} = q_k ⊗ Exp(h (w_k + w_{k+1}) / 2 + h^2 / 12 · w_k × w_{k+1}) — the rotation vector
     of a linearly varying body rate to third order (Bortz coning term), with bias-corrected rates.
@@ -80,9 +115,9 @@ def strapdown_kernel(
     R = np.empty((3, 3))
     a_prev = np.empty(3)
     a_next = np.empty(3)
+    matrix_to_quat(R0, q)
     for i in range(4):
-        q[i] = q0[i]
-        q_out[0, i] = q0[i]
+        q_out[0, i] = q[i]
     for i in range(3):
         p_out[0, i] = p0[i]
         v_out[0, i] = v0[i]
@@ -118,6 +153,9 @@ def strapdown_kernel(
             p_out[k + 1, i] = p_out[k, i] + h * v_out[k, i] + h * h * (2.0 * a_prev[i] + a_next[i]) / 6.0
             v_out[k + 1, i] = v_out[k, i] + 0.5 * h * (a_prev[i] + a_next[i])
             a_prev[i] = a_next[i]
+    for i in range(3):
+        for j in range(3):
+            R_end[i, j] = R[i, j]
 
 
 @numba.njit(cache=True)

@@ -19,7 +19,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from atr.errors import InputError
 from atr.imu._kernels import paper_kernel, strapdown_kernel
@@ -59,6 +58,15 @@ class NavState:
         R = self.R_world_imu
         if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0.0:
             raise InputError(f"R_world_imu {R.tolist()} is not a rotation matrix")
+
+    @classmethod
+    def _trusted(cls, stamp_ns: int, R: np.ndarray, p: np.ndarray, v: np.ndarray, bg: np.ndarray,
+                 ba: np.ndarray) -> NavState:  # fmt: skip
+        """Build from arrays this module produced itself (already float64, right shapes): skips checks."""
+        s = object.__new__(cls)
+        s.stamp_ns, s.R_world_imu, s.p_world_m, s.v_world_mps = stamp_ns, R, p, v
+        s.gyro_bias_radps, s.accel_bias_mps2 = bg, ba
+        return s
 
     @property
     def T_world_imu(self) -> np.ndarray:
@@ -136,8 +144,8 @@ def check_imu_samples(
     for name, a in (("gyro_radps", gyro), ("accel_mps2", accel)):
         if a.shape != (n, 3):
             raise InputError(f"{name} must have shape ({n}, 3) to match t_ns, got {a.shape}")
-        bad = ~np.all(np.isfinite(a), axis=1)
-        if bad.any():
+        if not np.isfinite(a).all():
+            bad = ~np.all(np.isfinite(a), axis=1)
             i = int(np.argmax(bad))
             raise InputError(f"{name}[{i}] = {a[i].tolist()} at t_ns {int(t[i])} is not finite")
     if n > 1:
@@ -174,19 +182,16 @@ def _propagate(
     dt_s = np.diff(t).astype(np.float64) / _NS_PER_S
     n = t.shape[0]
     if config.integration == "strapdown":
-        xyzw = Rotation.from_matrix(state.R_world_imu).as_quat()
-        q0 = np.array([xyzw[3], xyzw[0], xyzw[1], xyzw[2]])
         q_out = np.empty((n, 4))
         p_out = np.empty((n, 3))
         v_out = np.empty((n, 3))
+        R = np.empty((3, 3))
         strapdown_kernel(
-            q0, state.p_world_m, state.v_world_mps, state.gyro_bias_radps, state.accel_bias_mps2,
-            config.gravity_world_mps2, dt_s, gyro, accel, q_out, p_out, v_out,
+            state.R_world_imu, state.p_world_m, state.v_world_mps, state.gyro_bias_radps,
+            state.accel_bias_mps2, config.gravity_world_mps2, dt_s, gyro, accel, q_out, p_out, v_out, R,
         )  # fmt: skip
-        w, x, y, z = q_out[-1]
-        R = Rotation.from_quat([x, y, z, w]).as_matrix()
-        return NavState(int(t[-1]), R, p_out[-1], v_out[-1], state.gyro_bias_radps.copy(),
-                        state.accel_bias_mps2.copy())  # fmt: skip
+        return NavState._trusted(int(t[-1]), R, p_out[-1], v_out[-1], state.gyro_bias_radps.copy(),
+                                 state.accel_bias_mps2.copy())  # fmt: skip
     angles0 = np.array(attitude_angles(state.R_world_imu))
     angles = np.empty((n, 3))
     pos_body = np.empty((n, 3))
@@ -194,7 +199,7 @@ def _propagate(
     paper_kernel(angles0, state.gyro_bias_radps, state.accel_bias_mps2, dt_s, gyro, accel,
                  angles, pos_body, vel_body)  # fmt: skip
     R0 = state.R_world_imu
-    return NavState(
+    return NavState._trusted(
         int(t[-1]),
         attitude_matrix(*angles[-1]),
         state.p_world_m + R0 @ pos_body[-1],
@@ -337,7 +342,7 @@ class PoseIntegrator:
 
 
 def _copy(s: NavState) -> NavState:
-    return NavState(s.stamp_ns, s.R_world_imu.copy(), s.p_world_m.copy(), s.v_world_mps.copy(),
+    return NavState._trusted(s.stamp_ns, s.R_world_imu.copy(), s.p_world_m.copy(), s.v_world_mps.copy(),
                     s.gyro_bias_radps.copy(), s.accel_bias_mps2.copy())  # fmt: skip
 
 
