@@ -1,0 +1,142 @@
+"""sensor_source: the simulated UAV's sensors on the bus — camera images, IMU batches, LIDAR scans, truth.
+
+It flies one scenario run of Table II in the simulated world (atr/sim) and publishes, per frame, in this
+order: the ImuBatch (samples since the previous frame; the first carries the initial navigation state, as a
+GNSS/INS alignment before take-off would), the LIDAR cloud (with --lidar), the truth, and the Image.
+`atr simulate` writes the same messages straight into a recording.
+
+Pacing: `--pace realtime` (the frame interval of the flight), `--pace fast` (as fast as it renders), or
+`--pace lock-step` (the next frame only after the pipeline answered the last: a Detections or an ErrorReport
+stamped with the frame's stamp_ns; nothing is ever dropped).
+
+Example:
+    atr service sensor_source --scenario 1 --run 3 --frames 20 --pace lock-step
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from atr.config import AtrConfig
+from atr.sim.flight import SensorFrame, simulate_flight
+from atr.sim.scenarios import scenario as scenario_preset
+from bus import codec, keys
+from bus.service import effective_config, service_arguments, start_node
+
+log = logging.getLogger("atr")
+
+
+def frame_messages(frame: SensorFrame, uav: str, scenario: int, run: int, seed: int,
+                   first: bool) -> Iterator[tuple[str, dict[str, Any]]]:
+    """The (key, message) pairs of one simulated frame, in publication order (image last)."""
+    imu = {
+        "stamp_ns": frame.stamp_ns, "seq": frame.seq, "frame_seq": frame.seq,
+        "t_ns": frame.imu_t_ns.astype(np.int64), "gyro_radps": frame.gyro_radps,
+        "accel_mps2": frame.accel_mps2,
+    }
+    if first:
+        imu["init"] = {"T_world_imu": frame.T_world_imu, "v_world_mps": frame.v_world_imu_mps}
+    yield keys.imu(uav), imu
+    if frame.lidar_points_m is not None:
+        yield keys.lidar(uav), {
+            "stamp_ns": frame.stamp_ns, "seq": frame.seq, "source": "lidar", "frame_seqs": [frame.seq],
+            "points_m": frame.lidar_points_m.astype(np.float32),
+            "viewpoint_m": frame.T_world_cam[:3, 3].astype(np.float64),
+        }
+    yield keys.truth(uav), {
+        "stamp_ns": frame.stamp_ns, "seq": frame.seq, "frame_seq": frame.seq,
+        "T_world_cam": frame.T_world_cam, "scenario": scenario, "run": run, "seed": seed,
+        "targets": [
+            {"name": t.name, "T_world_target": t.T_world_target, "visible_fraction": float(t.visible_fraction)}
+            for t in frame.targets
+        ],
+    }
+    yield keys.image(uav), {
+        "stamp_ns": frame.stamp_ns, "seq": frame.seq, "frame_seq": frame.seq, "encoding": "rgb8",
+        "data": frame.image, "K": frame.K, "distortion": np.zeros(0),
+    }
+
+
+def flight_frames(config: AtrConfig, scenario: int, run: int, frames: int | None, seed: int,
+                  lidar: bool, noise: str | None, target_mesh: str | None = None,
+                  clutter_meshes: tuple[str, ...] = ()) -> Iterator[SensorFrame]:
+    """The simulated frames of a run, with optional mesh files for the target and extra confusers."""
+    from atr.io.mesh import load_mesh  # noqa: PLC0415
+
+    target = load_mesh(target_mesh) if target_mesh else None
+    clutter = [load_mesh(p) for p in clutter_meshes]
+    name = Path(target_mesh).stem if target_mesh else None
+    return simulate_flight(scenario_preset(scenario, run), seed=seed, frames=frames, target_mesh=target,
+                           clutter_meshes=clutter, lidar=lidar, noise=noise, config=config.sim,
+                           target_name=name)
+
+
+class AnswerWatch:
+    """Tracks which frame stamps the pipeline has answered (Detections, or an ErrorReport about them)."""
+
+    def __init__(self, session: Any, uav: str, answer_key: str) -> None:
+        self._answered: set[int] = set()
+        self._cond = threading.Condition()
+        self._subs = [
+            session.declare_subscriber(answer_key, lambda s: self._on(s, "stamp_ns")),
+            session.declare_subscriber(f"atr/{uav}/*/errors", lambda s: self._on(s, "input_stamp_ns")),
+        ]
+
+    def _on(self, sample: Any, field: str) -> None:
+        try:
+            stamp = codec.unpack(sample.payload.to_bytes()).get(field)
+        except Exception:  # not ours to judge here; the recorder keeps it
+            return
+        if isinstance(stamp, int):
+            with self._cond:
+                self._answered.add(stamp)
+                self._cond.notify_all()
+
+    def wait(self, stamp_ns: int, timeout_s: float) -> bool:
+        """True once `stamp_ns` was answered; False after `timeout_s`."""
+        with self._cond:
+            return self._cond.wait_for(lambda: stamp_ns in self._answered, timeout_s)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Fly the run, then exit."""
+    parser = service_arguments("sensor_source", __doc__)
+    parser.add_argument("--scenario", type=int, default=1, help="Table II scenario (1, 2, 3)")
+    parser.add_argument("--run", type=int, default=3, help="run within the scenario (1-based)")
+    parser.add_argument("--frames", type=int, help="stop after this many frames")
+    parser.add_argument("--seed", type=int, default=0, help="world seed")
+    parser.add_argument("--lidar", action="store_true", help="also publish LIDAR scans")
+    parser.add_argument("--noise", help="noise spec, e.g. shot, gaussian:10")
+    parser.add_argument("--target-mesh", help="mesh file replacing the T-72")
+    parser.add_argument("--clutter-mesh", action="append", default=[], help="extra confuser mesh (repeatable)")
+    parser.add_argument("--pace", choices=["realtime", "fast", "lock-step"], default="lock-step")
+    parser.add_argument("--answer-timeout", type=float, default=600.0, help="lock-step wait per frame, s")
+    args = parser.parse_args(argv)
+    config = effective_config(args)
+    frames = flight_frames(config, args.scenario, args.run, args.frames, args.seed, args.lidar,
+                           args.noise, args.target_mesh, tuple(args.clutter_mesh))
+    with start_node("sensor_source", args, inputs=[]) as node:
+        watch = AnswerWatch(node.session, args.uav, keys.detections(args.uav))
+        node.ready()
+        time.sleep(1.0)  # let gossip connect every peer before the first frame
+        last_stamp: int | None = None
+        for index, frame in enumerate(frames):
+            if node.stopping:
+                break
+            if args.pace == "realtime" and last_stamp is not None:
+                time.sleep(max(0.0, (frame.stamp_ns - last_stamp) * 1e-9))
+            for key, message in frame_messages(frame, args.uav, args.scenario, args.run, args.seed, index == 0):
+                node.publish(key, message)
+            last_stamp = frame.stamp_ns
+            if args.pace == "lock-step" and not watch.wait(frame.stamp_ns, args.answer_timeout):
+                node.report_error(keys.detections(args.uav), TimeoutError(
+                    f"no answer to frame {frame.seq} within {args.answer_timeout} s"), frame.seq, frame.stamp_ns)
+            log.info("frame %d published", frame.seq)
+    return 0
