@@ -1,0 +1,342 @@
+"""The recorder: every message on `atr/**` and `sim/**`, as received, into one MCAP file (ARCHITECTURE.md §6).
+
+- topic = key expression; message encoding `msgpack`; schema encoding `jsonschema` with the registry's schema
+  (`bus.schemas.schema_bytes`); keys outside the contract get a channel without schema (schema id 0);
+- log_time = receive time (ns, taken on Zenoh's callback thread under a lock, so it never goes back);
+  publish_time = the message's stamp_ns; sequence = its seq. Both come from the attachment, else from the
+  payload itself (`codec.unpack`), else 0;
+- bytes are written as received: nothing is re-encoded, nothing rejected (a bad message is evidence);
+- Zenoh's callback only timestamps and enqueues (unbounded queue: no loss); a writer thread does the rest;
+- a chunk is closed when it exceeds `chunk_size_bytes` or `flush_interval_s` after its first message, so a
+  `kill -9` loses at most about that long; SIGINT/SIGTERM close the file with its summary and indexes.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import queue
+import socket
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from atr.errors import AtrError, BusError, ConfigError, RecordingError
+from bus import codec, keys, schemas
+from bus.mcap_tools import ChunkedWriter
+from bus.node import Node
+
+log = logging.getLogger("atr.recorder")
+
+DEFAULT_KEY_EXPRS = ("atr/**", "sim/**")
+
+
+@dataclass(frozen=True)
+class RecorderConfig:
+    """Settings of the recorder.
+
+    Attributes:
+        key_exprs: key expressions subscribed to.
+        chunk_size_bytes: a chunk is written once its uncompressed records exceed this many bytes.
+        flush_interval_s: a chunk is written at the latest this long after its first message (bounds the loss on
+            a crash), seconds.
+        zstd_level: zstd level of chunks; 1 keeps up with the 2x camera load on one core (docs/performance/bus.md).
+        zstd_threads: zstd worker threads (0 = compress in the writer thread).
+    """
+
+    key_exprs: tuple[str, ...] = DEFAULT_KEY_EXPRS
+    chunk_size_bytes: int = 8 * 1024 * 1024
+    flush_interval_s: float = 1.0
+    zstd_level: int = 1
+    zstd_threads: int = 0
+
+    def __post_init__(self) -> None:
+        if not self.key_exprs:
+            raise ConfigError("recorder key expressions must not be empty")
+        if self.chunk_size_bytes <= 0:
+            raise ConfigError(f"chunk size {self.chunk_size_bytes} bytes must be > 0")
+        if not self.flush_interval_s > 0:
+            raise ConfigError(f"flush interval {self.flush_interval_s} s must be > 0")
+        if not -7 <= self.zstd_level <= 22:
+            raise ConfigError(f"zstd level {self.zstd_level} must be in [-7, 22]")
+
+
+@dataclass
+class RecorderStats:
+    """What the recorder has written so far."""
+
+    messages: int = 0
+    bytes: int = 0
+    channels: int = 0
+    without_schema: int = 0
+    unstamped: int = 0
+    gaps: int = 0
+    queue_max: int = 0
+    by_topic: dict[str, int] = field(default_factory=dict)
+
+
+_STOP = object()
+
+
+class Recorder:
+    """Subscribes to the bus and writes what arrives into an MCAP file.
+
+    Args:
+        session: an open Zenoh session (not closed by the recorder).
+        out: path of the MCAP file to write (parent folders are created).
+        config: chunking and subscription settings.
+        on_problem: called from the writer thread with (key, exception) for problems worth reporting on the bus
+            (sequence gaps; a write failure, after which recording stops).
+
+    Raises:
+        RecordingError: the file cannot be created.
+    """
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        out: str | Path,
+        config: RecorderConfig | None = None,
+        on_problem: Any = None,
+    ) -> None:
+        self.config = config or RecorderConfig()
+        self.path = Path(out)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.stats = RecorderStats()
+        self.failure: BaseException | None = None
+        self._writer = ChunkedWriter(
+            self.path,
+            chunk_size_bytes=self.config.chunk_size_bytes,
+            zstd_level=self.config.zstd_level,
+            zstd_threads=self.config.zstd_threads,
+        )
+        self._on_problem = on_problem
+        self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._clock = threading.Lock()
+        self._schema_ids: dict[str, int] = {}
+        self._channel_ids: dict[str, int] = {}
+        self._last_seq: dict[tuple[str, str], int] = {}
+        self._thread = threading.Thread(target=self._write_loop, name="mcap-writer", daemon=True)
+        self._thread.start()
+        self._subscribers = [session.declare_subscriber(k, self._on_sample) for k in self.config.key_exprs]
+        self._closed = False
+
+    # Zenoh callback thread -----------------------------------------------------------------------
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        payload = sample.payload.to_bytes()
+        attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
+        key = str(sample.key_expr)
+        with self._clock:  # receive time and queue order agree, so log times never go back
+            self._queue.put((time.time_ns(), key, payload, attachment))
+
+    # Writer thread ---------------------------------------------------------------------------------
+
+    def _write_loop(self) -> None:
+        interval_ns = int(self.config.flush_interval_s * 1e9)
+        first_pending_ns = 0
+        while True:
+            try:
+                item = self._queue.get(timeout=self.config.flush_interval_s / 4)
+            except queue.Empty:
+                item = None
+            now = time.monotonic_ns()
+            if item is _STOP:
+                return
+            if item is not None and self.failure is None:
+                try:
+                    self._write(*item)
+                except (OSError, RecordingError) as exc:
+                    self._fail(item[1], exc)
+                if self._writer.pending_messages == 1:
+                    first_pending_ns = now
+                depth = self._queue.qsize()
+                self.stats.queue_max = max(self.stats.queue_max, depth)
+            if self._writer.pending_messages and now - first_pending_ns >= interval_ns and self.failure is None:
+                try:
+                    self._writer.flush()
+                except OSError as exc:
+                    self._fail("*", exc)
+
+    def _fail(self, key: str, exc: BaseException) -> None:
+        self.failure = exc
+        log.error("recording to %s failed: %s", self.path, exc)
+        self._problem(key, RecordingError(f"writing {self.path} failed, recording stopped: {exc}"))
+
+    def _problem(self, key: str, exc: AtrError) -> None:
+        if self._on_problem is not None:
+            try:
+                self._on_problem(key, exc)
+            except Exception:  # reporting must never stop the recording
+                log.exception("problem report failed")
+
+    def _write(self, log_time: int, key: str, payload: bytes, attachment: bytes | None) -> None:
+        channel_id = self._channel_ids.get(key)
+        if channel_id is None:
+            channel_id = self._add_channel(key)
+        seq, stamp_ns = self._seq_stamp(key, payload, attachment)
+        self._writer.add_message(channel_id, log_time, stamp_ns, seq, payload)
+        s = self.stats
+        s.messages += 1
+        s.bytes += len(payload)
+        s.by_topic[key] = s.by_topic.get(key, 0) + 1
+
+    def _add_channel(self, key: str) -> int:
+        try:
+            type_name = keys.message_type(key)
+        except BusError:
+            type_name = None
+        schema_id = 0
+        if type_name is not None:
+            schema_id = self._schema_ids.get(type_name, 0)
+            if not schema_id:
+                schema_id = self._writer.add_schema(type_name, "jsonschema", schemas.schema_bytes(type_name))
+                self._schema_ids[type_name] = schema_id
+        else:
+            self.stats.without_schema += 1
+        channel_id = self._writer.add_channel(key, "msgpack", schema_id)
+        self._channel_ids[key] = channel_id
+        self.stats.channels += 1
+        return channel_id
+
+    def _seq_stamp(self, key: str, payload: bytes, attachment: bytes | None) -> tuple[int, int]:
+        decoded = codec.decode_attachment(attachment)
+        if decoded is not None:
+            seq, stamp_ns, source = decoded
+            self._check_gap(key, source, seq)
+            return seq, stamp_ns
+        try:
+            message = codec.unpack(payload)
+        except AtrError:
+            message = None
+        if not isinstance(message, dict):
+            self.stats.unstamped += 1
+            return 0, 0
+        return _int_field(message, "seq"), _int_field(message, "stamp_ns")
+
+    def _check_gap(self, key: str, source: str, seq: int) -> None:
+        last = self._last_seq.get((key, source))
+        self._last_seq[(key, source)] = seq
+        if last is not None and seq != last + 1:
+            self.stats.gaps += 1
+            self._problem(key, BusError(f"sequence gap on {key} from {source}: seq {seq} after {last}"))
+
+    # Lifecycle ---------------------------------------------------------------------------------
+
+    def close(self) -> RecorderStats:
+        """Stop subscribing, write everything queued, and close the file (summary, indexes, footer).
+
+        Raises:
+            RecordingError: the file could not be written (the first failure).
+        """
+        if self._closed:
+            return self.stats
+        self._closed = True
+        for sub in self._subscribers:
+            sub.undeclare()
+        with self._clock:
+            self._queue.put(_STOP)
+        self._thread.join()
+        if self.failure is None:
+            try:
+                self._writer.close()
+            except OSError as exc:
+                self.failure = exc
+        if self.failure is not None:
+            raise RecordingError(f"recording {self.path} failed: {self.failure}") from self.failure
+        return self.stats
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _int_field(message: dict[Any, Any], name: str) -> int:
+    value = message.get(name)
+    return value if isinstance(value, int) and not isinstance(value, bool) else 0
+
+
+class RecorderNode(Node):
+    """A `Node` whose Status counters also carry the recorder's figures (messages, bytes, channels, gaps)."""
+
+    recorder: Recorder | None = None
+
+    def _publish_status(self, state: str) -> None:
+        # Same Status as Node's, plus the recorder's counters (Status.counters allows any integer counter).
+        c = self.counters
+        counters = {
+            "received": c.received,
+            "handled": c.handled,
+            "published": c.published,
+            "errors": c.errors,
+            "gaps": c.gaps,
+            "dropped": c.dropped,
+        }
+        if self.recorder is not None:
+            s = self.recorder.stats
+            counters |= {
+                "messages": s.messages,
+                "bytes": s.bytes,
+                "channels": s.channels,
+                "gaps": s.gaps,
+                "queue_max": s.queue_max,
+                "unstamped": s.unstamped,
+            }
+        self.publish(
+            keys.service_key(self.uav, self.service, "status"),
+            {
+                "stamp_ns": time.time_ns(),
+                "service": self.service,
+                "uav": self.uav,
+                "host": socket.gethostname(),
+                "pid": os.getpid(),
+                "state": state,
+                "uptime_s": time.monotonic() - self._started,
+                "counters": counters,
+            },
+        )
+
+
+def run_recorder(
+    out: str | Path,
+    *,
+    uav: str = "uav1",
+    zenoh_config: dict[str, Any] | str | None = None,
+    config: RecorderConfig | None = None,
+    service: str = "recorder",
+    ready: threading.Event | None = None,
+) -> RecorderStats:
+    """Record until SIGINT/SIGTERM (or `Node.stop()`), then close the file; what `atr record` and the recorder
+    service run. Status and ErrorReports go on `atr/{uav}/{service}/...`.
+
+    Raises:
+        RecordingError: the file could not be written.
+    """
+    with RecorderNode(service, uav, zenoh_config=zenoh_config) as node:
+
+        def report(key: str, exc: AtrError) -> None:
+            node.report_error(key, exc)
+            if isinstance(exc, RecordingError):
+                node.stop()
+
+        recorder = Recorder(node.session, out, config, on_problem=report)
+        node.recorder = recorder
+        log.info("recording %s to %s", ", ".join(recorder.config.key_exprs), recorder.path)
+        if ready is not None:
+            ready.set()
+        try:
+            for _ in node.events():  # no inputs: returns when stopped
+                pass
+        finally:
+            stats = recorder.close()
+        log.info(
+            "closed %s: %d messages, %.1f MB, %d channels, %d gaps, max queue %d",
+            recorder.path, stats.messages, stats.bytes / 1e6, stats.channels, stats.gaps, stats.queue_max,
+        )
+        return stats

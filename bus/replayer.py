@@ -1,0 +1,333 @@
+"""The replayer: a recording's inputs back on the bus, in log-time order (ARCHITECTURE.md §5–6).
+
+Inputs are the messages on `atr/*/camera/image`, `atr/*/imu`, `atr/*/lidar/cloud` and `sim/*/truth`. Each is
+published with its recorded bytes (byte-identical payload) and a fresh attachment carrying the recorded seq
+(MCAP `sequence`), the recorded stamp (MCAP `publish_time`) and the replayer's own source id.
+
+Modes (one method each):
+- `recorded(rate)`: log-time spacing divided by `rate` (1.0 = as recorded);
+- `fast()`: as fast as the bus takes them (publishers block rather than drop);
+- `lock_step(answer_key, answer_timeout_s)`: everything up to and including a camera frame is published, then
+  the replayer waits for the pipeline's answer to that frame: a message on `answer_key` (default
+  `atr/{uav}/detections`) whose `stamp_ns` equals the image's, or an ErrorReport on any `atr/{uav}/*/errors` key
+  whose `input_stamp_ns` equals it. A missing answer after `answer_timeout_s` is logged, counted and reported on
+  the replayer's errors key, and the replay goes on. See docs/recording.md.
+
+Before the first message the replayer waits until the services named in `wait_for` have published a Status
+(their subscribers exist by then), until every publisher has a matching subscriber (or `match_timeout_s`), and
+then `settle_s`, so the first messages are not lost.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import zenoh
+from mcap.reader import make_reader
+from mcap.records import Message
+
+from atr.errors import AtrError, BusError, ConfigError, RecordingError
+from bus import codec, keys
+from bus.node import Node
+from bus.session import open_session
+
+log = logging.getLogger("atr.replayer")
+
+INPUT_TOPIC = re.compile(
+    r"^(atr/[^/]+/(" + "|".join(re.escape(k) for k in keys.INPUT_KEYS) + r")|sim/[^/]+/truth)$"
+)
+IMAGE_TOPIC = re.compile(r"^atr/([^/]+)/camera/image$")
+DEFAULT_ANSWER_KEY = "atr/{uav}/detections"
+
+
+def is_input_topic(topic: str) -> bool:
+    """True for the keys a replay publishes (camera images, IMU batches, LIDAR clouds, simulator truth)."""
+    return INPUT_TOPIC.match(topic) is not None
+
+
+@dataclass
+class ReplayStats:
+    """What a replay did."""
+
+    published: int = 0
+    bytes: int = 0
+    frames: int = 0
+    answered: int = 0
+    timeouts: int = 0
+    wall_s: float = 0.0
+    by_topic: dict[str, int] = field(default_factory=dict)
+
+
+class Replayer:
+    """Publishes the inputs of one recording; usable in-process (`atr run`) or from `atr replay`.
+
+    Args:
+        path: the MCAP recording (closed cleanly; run `atr mcap recover` on a crashed one first).
+        session: an open Zenoh session to publish on (not closed here); None opens one from `zenoh_config`.
+        zenoh_config: config dict or JSON5 path, used when `session` is None.
+        uav: replay only this vehicle's inputs (None: every vehicle in the recording).
+        wait_for: services (e.g. "sfm") whose Status must be seen before the first message.
+        ready_timeout_s: how long to wait for those services, seconds.
+        match_timeout_s: how long to wait for each publisher to have a matching subscriber, seconds.
+        settle_s: extra pause before the first message, seconds.
+        service: name of the replayer's own status/errors keys (`atr/{status_uav}/{service}/...`).
+        status_uav: vehicle id of those keys.
+
+    Raises:
+        RecordingError: the file is missing, not closed, or holds no input.
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        session: zenoh.Session | None = None,
+        *,
+        zenoh_config: dict[str, Any] | str | None = None,
+        uav: str | None = None,
+        wait_for: tuple[str, ...] | list[str] = (),
+        ready_timeout_s: float = 30.0,
+        match_timeout_s: float = 5.0,
+        settle_s: float = 0.3,
+        service: str = "replayer",
+        status_uav: str = "uav1",
+    ) -> None:
+        self.path = Path(path)
+        self.topics = self._input_topics(uav)
+        self._owns_session = session is None
+        self.session = session if session is not None else open_session(zenoh_config)
+        self.node = Node(service, status_uav, session=self.session)
+        self.source_id = self.node.source_id
+        self.stats = ReplayStats()
+        self._stop = threading.Event()
+        self._wait_for = tuple(wait_for)
+        self._ready_timeout_s = ready_timeout_s
+        self._match_timeout_s = match_timeout_s
+        self._settle_s = settle_s
+        self._answers: set[tuple[str, int]] = set()
+        self._answer_cv = threading.Condition()
+        self._publishers = {
+            topic: self.session.declare_publisher(topic, congestion_control=zenoh.CongestionControl.BLOCK)
+            for topic in self.topics
+        }
+
+    # Public interface --------------------------------------------------------------------------
+
+    def recorded(self, rate: float = 1.0) -> ReplayStats:
+        """Publish with the recording's log-time spacing divided by `rate` (2.0 = twice as fast).
+
+        Raises:
+            ConfigError: `rate` is not > 0.
+        """
+        if not rate > 0:
+            raise ConfigError(f"replay rate {rate} must be > 0")
+        self._get_ready()
+        start_wall = time.monotonic()
+        first_log: int | None = None
+        for topic, message in self._messages():
+            first_log = message.log_time if first_log is None else first_log
+            delay = start_wall + (message.log_time - first_log) / 1e9 / rate - time.monotonic()
+            if delay > 0 and self._stop.wait(delay):
+                break
+            self._publish(topic, message)
+        return self._finish(start_wall)
+
+    def fast(self) -> ReplayStats:
+        """Publish every input as fast as the bus takes it."""
+        self._get_ready()
+        start_wall = time.monotonic()
+        for topic, message in self._messages():
+            self._publish(topic, message)
+        return self._finish(start_wall)
+
+    def lock_step(
+        self, answer_key: str = DEFAULT_ANSWER_KEY, answer_timeout_s: float = 60.0
+    ) -> ReplayStats:
+        """Publish up to and including each camera frame, then wait for the pipeline's answer to that frame.
+
+        Args:
+            answer_key: key of the answers; `{uav}` is replaced by the frame's vehicle id.
+            answer_timeout_s: how long to wait for one answer before warning and going on, seconds.
+
+        Raises:
+            ConfigError: `answer_timeout_s` is not > 0.
+        """
+        if not answer_timeout_s > 0:
+            raise ConfigError(f"answer timeout {answer_timeout_s} s must be > 0")
+        subscribers = [
+            self.session.declare_subscriber(answer_key.replace("{uav}", "*"), self._on_answer),
+            self.session.declare_subscriber("atr/*/*/errors", self._on_error_report),
+        ]
+        try:
+            self._get_ready()
+            start_wall = time.monotonic()
+            for topic, message in self._messages():
+                self._publish(topic, message)
+                image = IMAGE_TOPIC.match(topic)
+                if image is not None:
+                    self._await_answer(image.group(1), message, answer_key, answer_timeout_s)
+            return self._finish(start_wall)
+        finally:
+            for sub in subscribers:
+                sub.undeclare()
+
+    def run(self, mode: str = "lock-step", **kwargs: Any) -> ReplayStats:
+        """Dispatch to `recorded`, `fast` or `lock_step` by name ("recorded", "fast", "lock-step").
+
+        Raises:
+            ConfigError: unknown mode.
+        """
+        methods = {"recorded": self.recorded, "fast": self.fast, "lock-step": self.lock_step}
+        if mode not in methods:
+            raise ConfigError(f"replay mode {mode!r} must be one of {sorted(methods)}")
+        return methods[mode](**kwargs)
+
+    def stop(self) -> None:
+        """Ask a running replay to end after the message in hand."""
+        self._stop.set()
+        with self._answer_cv:
+            self._answer_cv.notify_all()
+
+    def close(self, linger_s: float = 0.3) -> None:
+        """Let the last publications leave (`linger_s`), then undeclare and close what this replayer opened."""
+        if linger_s > 0:
+            time.sleep(linger_s)
+        for pub in self._publishers.values():
+            pub.undeclare()
+        self._publishers = {}
+        self.node.close()
+        if self._owns_session:
+            self.session.close()
+
+    def __enter__(self) -> Replayer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # Internals ---------------------------------------------------------------------------------
+
+    def _input_topics(self, uav: str | None) -> list[str]:
+        if not self.path.is_file():
+            raise RecordingError(f"recording {self.path} does not exist")
+        with open(self.path, "rb") as f:
+            try:
+                summary = make_reader(f).get_summary()
+            except Exception as exc:  # the mcap reader raises several types on a cut-short file
+                raise RecordingError(
+                    f"{self.path} has no readable summary ({exc}); run `atr mcap recover` on it first"
+                ) from exc
+        if summary is None:
+            raise RecordingError(f"{self.path} has no summary; run `atr mcap recover` on it first")
+        topics = sorted(
+            {
+                c.topic
+                for c in summary.channels.values()
+                if is_input_topic(c.topic) and (uav is None or c.topic.split("/")[1] == uav)
+            }
+        )
+        if not topics:
+            which = f" for {uav}" if uav else ""
+            raise RecordingError(f"{self.path} holds no input{which} (camera/image, imu, lidar/cloud, truth)")
+        return topics
+
+    def _messages(self) -> Iterator[tuple[str, Message]]:
+        with open(self.path, "rb") as f:
+            for _, channel, message in make_reader(f).iter_messages(topics=self.topics, log_time_order=True):
+                if self._stop.is_set():
+                    return
+                yield channel.topic, message
+
+    def _publish(self, topic: str, message: Message) -> None:
+        attachment = codec.encode_attachment(message.sequence, message.publish_time, self.source_id)
+        self._publishers[topic].put(message.data, attachment=attachment)
+        s = self.stats
+        s.published += 1
+        s.bytes += len(message.data)
+        s.by_topic[topic] = s.by_topic.get(topic, 0) + 1
+        self.node.counters.published += 1
+
+    def _get_ready(self) -> None:
+        if self._wait_for:
+            self._wait_for_services()
+        deadline = time.monotonic() + self._match_timeout_s
+        for topic, pub in self._publishers.items():
+            while not pub.matching_status and time.monotonic() < deadline and not self._stop.is_set():
+                time.sleep(0.01)
+            if not pub.matching_status:
+                log.warning("no subscriber for %s after %.1f s; publishing anyway", topic, self._match_timeout_s)
+        self._stop.wait(self._settle_s)
+
+    def _wait_for_services(self) -> None:
+        seen: set[str] = set()
+        cv = threading.Condition()
+
+        def on_status(sample: zenoh.Sample) -> None:
+            with cv:
+                seen.add(str(sample.key_expr).split("/")[2])
+                cv.notify_all()
+
+        subs = [self.session.declare_subscriber(f"atr/*/{s}/status", on_status) for s in self._wait_for]
+        try:
+            with cv:
+                ok = cv.wait_for(
+                    lambda: seen >= set(self._wait_for) or self._stop.is_set(), timeout=self._ready_timeout_s
+                )
+        finally:
+            for sub in subs:
+                sub.undeclare()
+        if not ok:
+            missing = sorted(set(self._wait_for) - seen)
+            raise BusError(f"no Status from {', '.join(missing)} within {self._ready_timeout_s} s; are they running?")
+
+    def _on_answer(self, sample: zenoh.Sample) -> None:
+        self._note_answer(sample, "stamp_ns")
+
+    def _on_error_report(self, sample: zenoh.Sample) -> None:
+        if str(sample.key_expr).split("/")[2] != self.node.service:  # our own timeout reports answer nothing
+            self._note_answer(sample, "input_stamp_ns")
+
+    def _note_answer(self, sample: zenoh.Sample, field_name: str) -> None:
+        try:
+            message = codec.unpack(sample.payload.to_bytes())
+        except AtrError:
+            return
+        stamp = message.get(field_name) if isinstance(message, dict) else None
+        if isinstance(stamp, int):
+            uav = str(sample.key_expr).split("/")[1]
+            with self._answer_cv:
+                self._answers.add((uav, stamp))
+                self._answer_cv.notify_all()
+
+    def _await_answer(self, uav: str, image: Message, answer_key: str, timeout_s: float) -> None:
+        stamp = image.publish_time
+        self.stats.frames += 1
+        with self._answer_cv:
+            answered = self._answer_cv.wait_for(
+                lambda: (uav, stamp) in self._answers or self._stop.is_set(), timeout=timeout_s
+            )
+            self._answers.discard((uav, stamp))
+        if self._stop.is_set():
+            return
+        if answered:
+            self.stats.answered += 1
+            return
+        self.stats.timeouts += 1
+        key = answer_key.replace("{uav}", uav)
+        self.node.report_error(
+            keys.image(uav),
+            BusError(f"no answer on {key} (or an ErrorReport) to the frame of stamp {stamp} ns within {timeout_s} s"),
+            input_seq=image.sequence,
+            input_stamp_ns=stamp,
+            input_source=self.source_id,
+        )
+
+    def _finish(self, start_wall: float) -> ReplayStats:
+        self.stats.wall_s = time.monotonic() - start_wall
+        return self.stats

@@ -1,0 +1,71 @@
+"""Inspect, check and repair MCAP recordings.
+
+`info` lists channels (topic, schema, message count), the time span, message count and size. `check` validates
+the file record by record (magic, schema and channel definitions before use, chunk CRCs and sizes, indexes,
+summary and statistics against the data, log-time order) and names every problem (exit 1), or prints OK.
+`recover` copies everything up to the first broken record (e.g. after a crash) into a clean file.
+
+Examples:
+    atr mcap info runs/flight.mcap
+    atr mcap check runs/flight.mcap || echo "broken"
+    atr mcap recover runs/crashed.mcap runs/crashed-recovered.mcap
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Sub-commands of `atr mcap`."""
+    sub = parser.add_subparsers(dest="mcap_command", metavar="ACTION", required=True)
+    info = sub.add_parser("info", help="channels, counts, time span, size")
+    info.add_argument("file", metavar="FILE")
+    check = sub.add_parser("check", help="validate a recording; exit 1 naming each problem")
+    check.add_argument("file", metavar="FILE")
+    recover = sub.add_parser("recover", help="copy a cut-short recording up to its last good record")
+    recover.add_argument("src", metavar="IN")
+    recover.add_argument("dst", metavar="OUT")
+
+
+def _stamp(ns: int | None) -> str:
+    import datetime
+
+    if ns is None:
+        return "-"
+    if ns > 10**17:  # Unix epoch
+        return datetime.datetime.fromtimestamp(ns / 1e9, datetime.UTC).isoformat(timespec="milliseconds")
+    return f"{ns / 1e9:.3f} s"
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run one `atr mcap` action; returns its exit code."""
+    from bus import mcap_tools
+
+    if args.mcap_command == "info":
+        info = mcap_tools.info(args.file)
+        print(f"file:      {info.path}")
+        print(f"size:      {info.size_bytes / 1e6:.3f} MB{'' if info.closed else ' (not closed)'}")
+        print(f"messages:  {info.messages} in {info.chunks} chunk(s)")
+        print(f"span:      {_stamp(info.start_ns)} .. {_stamp(info.end_ns)} ({info.duration_s:.3f} s)")
+        print(f"channels:  {len(info.channels)}")
+        width = max((len(c.topic) for c in info.channels), default=5)
+        for c in info.channels:
+            print(f"  {c.topic:<{width}}  {c.schema_name or '(no schema)':<12} {c.messages:>8}")
+        return 0
+    if args.mcap_command == "check":
+        problems = mcap_tools.check(args.file)
+        for problem in problems:
+            print(f"{args.file}: {problem}")
+        if problems:
+            return 1
+        print("OK")
+        return 0
+    result = mcap_tools.recover(args.src, args.dst)
+    print(
+        f"recovered {result.messages} messages on {result.channels} channels from "
+        f"{result.readable_bytes}/{result.source_bytes} bytes into {args.dst}"
+    )
+    if result.problem:
+        print(f"stopped at: {result.problem}")
+    return 0

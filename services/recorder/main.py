@@ -1,0 +1,53 @@
+"""The recorder service: everything on the bus into one MCAP file (see bus/recorder.py, docs/recording.md).
+
+Started by every layout; stops and closes its file on SIGTERM/SIGINT. Settings come from the command line or
+from the environment (ATR_RECORDER_OUT, ATR_UAV); see service.yml.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+from atr.errors import AtrError
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the recorder until stopped; returns the process exit code."""
+    parser = argparse.ArgumentParser(prog="recorder", description=__doc__)
+    parser.add_argument(
+        "--out",
+        default=os.environ.get("ATR_RECORDER_OUT") or time.strftime("runs/recording-%Y%m%d-%H%M%S.mcap"),
+        help="MCAP file to write (default $ATR_RECORDER_OUT or runs/recording-<time>.mcap)",
+    )
+    parser.add_argument("--uav", default=os.environ.get("ATR_UAV", "uav1"), help="vehicle id of own keys")
+    parser.add_argument("--zenoh", metavar="CONFIG", help="Zenoh JSON5 config (default: ATR_ZENOH_* env)")
+    parser.add_argument(
+        "--flush-interval",
+        type=float,
+        default=float(os.environ.get("ATR_RECORDER_FLUSH_S", "1.0")),
+        help="max age of an unwritten chunk, s",
+    )
+    args = parser.parse_args(argv)
+
+    from bus.node import setup_logging
+    from bus.recorder import RecorderConfig, run_recorder
+
+    setup_logging("recorder")
+    try:
+        run_recorder(
+            args.out,
+            uav=args.uav,
+            zenoh_config=args.zenoh,
+            config=RecorderConfig(flush_interval_s=args.flush_interval),
+        )
+    except AtrError as exc:
+        print(f"recorder: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
