@@ -1,0 +1,511 @@
+"""The simulated urban world of one scenario run: terrain, streets, buildings, walls, trees, vehicles, target.
+
+A seed fixes the city (street grid, lots, buildings, trees, parked cars, confusers, the target's place and
+heading, the sun). A run then removes what its UAV orbit would fly into, and what could hide the target
+completely, except one tall "occluder" building next to the target whose width is tuned so the share of
+the run's frames without a visible target matches Table II (see docs/sim.md, "Scenes without target").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from atr.errors import InputError
+from atr.sim import materials as M
+from atr.sim.config import SimConfig
+from atr.sim.mesh import (Mesh, box, cylinder, ellipsoid, gable_roof, merge, octahedron, place, pose,
+                          rot_z)
+from atr.sim.scenarios import Scenario
+from atr.sim.trajectory import Orbit, make_orbit
+from atr.sim.vehicles import car, ifv, t72, truck_6x6
+
+_TERRAIN_HALF_M = 400.0  # half size of the detailed terrain square, metres
+_TERRAIN_STEP_M = 2.5  # terrain grid spacing, metres
+_HORIZON_HALF_M = 6000.0  # half size of the flat outer ground that fills the view to the horizon
+_STREET_SPACING_M = (62.0, 85.0)  # distance between parallel streets, metres
+_STREET_WIDTH_M = (8.0, 12.0)  # carriageway width, metres
+_SIDEWALK_M = 2.5  # sidewalk width, metres
+_CITY_HALF_M = 330.0  # buildings are placed within this half size, metres
+_TARGET_TOP_M = 2.2  # a building lower than this above the line of sight cannot hide the target
+_CLEAR_AROUND_TARGET_M = 9.0  # no building or tree this close to the target, metres
+_UAV_CLEARANCE_M = 8.0  # horizontal and vertical margin kept between the orbit and any object, metres
+
+
+@dataclass(frozen=True)
+class World:
+    """A built world ready for rendering.
+
+    Attributes:
+        seed: seed the world was built from.
+        static: every surface except the target (terrain, buildings, trees, vehicles), world frame.
+        target: the target mesh in the world frame.
+        target_name: name of the target ("t72" or the name given for a custom mesh).
+        T_world_target: (4, 4) world-from-target pose (target mesh frame: origin on the ground, x forward).
+        target_local: the target mesh in its own frame.
+        ground_rects: (K, 8) float64 ground map rectangles (cx, cy, half_u, half_v, cos, sin, material,
+            centre-line marking flag), last match wins.
+        sun_dir: (3,) unit vector from the ground towards the sun.
+        orbit: the run's camera-head trajectory.
+        occluder_width_m: width of the tuned occluder building (0 when the run needs none).
+    """
+
+    seed: int
+    static: Mesh
+    target: Mesh
+    target_name: str
+    T_world_target: np.ndarray
+    target_local: Mesh
+    ground_rects: np.ndarray
+    sun_dir: np.ndarray
+    orbit: Orbit
+    occluder_width_m: float
+
+
+# ---------------------------------------------------------------------------------------------- terrain
+
+
+def terrain_height(x: np.ndarray, y: np.ndarray, waves: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """Gentle terrain height, metres: sum of plane waves, flattened to 0 around the target.
+
+    Args:
+        x, y: world coordinates, metres (any matching shapes).
+        waves: (K, 4) amplitude m, wavelength m, direction rad, phase rad.
+        center: (2,) target position; the terrain is flat (z = 0) within ~15 m of it.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    h = np.zeros(np.broadcast(x, y).shape)
+    for amp, lam, ang, ph in waves:
+        h += amp * np.sin(2 * np.pi * (x * np.cos(ang) + y * np.sin(ang)) / lam + ph)
+    r = np.hypot(x - center[0], y - center[1])
+    t = np.clip((r - 15.0) / 35.0, 0.0, 1.0)
+    return h * t * t * (3 - 2 * t)
+
+
+def _terrain_mesh(waves: np.ndarray, center: np.ndarray) -> Mesh:
+    n = int(round(2 * _TERRAIN_HALF_M / _TERRAIN_STEP_M)) + 1
+    g = np.linspace(-_TERRAIN_HALF_M, _TERRAIN_HALF_M, n)
+    X, Y = np.meshgrid(g, g, indexing="xy")
+    Z = terrain_height(X, Y, waves, center)
+    v = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+    i = np.arange(n - 1)
+    I, J = np.meshgrid(i, i, indexing="xy")
+    a = (J * n + I).ravel()
+    b, c, d = a + 1, a + n + 1, a + n
+    t = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    inner = Mesh(v, t, np.full(len(t), M.GROUND))
+    # flat outer ground up to the horizon, a ring of four trapezoids around the detailed square
+    H, h = _HORIZON_HALF_M, _TERRAIN_HALF_M
+    z0 = -0.3
+    ov = np.array([[-H, -H, z0], [H, -H, z0], [H, H, z0], [-H, H, z0],
+                   [-h, -h, z0], [h, -h, z0], [h, h, z0], [-h, h, z0]])
+    ot = np.array([[0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    outer = Mesh(ov, ot, np.full(len(ot), M.GRASS))
+    return merge([inner, outer])
+
+
+# ---------------------------------------------------------------------------------------------- objects
+
+
+def building(footprint: tuple[float, float], height_m: float, rng: np.random.Generator,
+             wall_material: int = M.FACADE) -> Mesh:
+    """A building centred at the origin on the ground (1 m of basement below z = 0) with roof details."""
+    lx, ly = footprint
+    parts = [box((lx, ly, height_m + 1.0), (0, 0, 0.5 * (height_m - 1.0)), wall_material, bottom=False)]
+    if height_m < 11.0 and rng.random() < 0.5:
+        ridge = min(lx, ly) * rng.uniform(0.25, 0.4)
+        roof = gable_roof(lx + 0.6, ly + 0.6, ridge, (0, 0, height_m), M.ROOF_TILE)
+        if ly > lx:  # ridge along the long side
+            roof = gable_roof(ly + 0.6, lx + 0.6, ridge, (0, 0, height_m), M.ROOF_TILE).transformed(
+                pose(rot_z(np.pi / 2)))
+        parts.append(roof)
+        parts.append(box((0.6, 0.6, ridge + 1.2), (0.25 * lx, 0.1 * ly, height_m + 0.5 * ridge), M.BRICK))
+        return merge(parts)
+    parts.append(box((lx - 0.4, ly - 0.4, 0.05), (0, 0, height_m + 0.02), M.ROOF))
+    # parapet
+    pw, ph = 0.25, rng.uniform(0.5, 1.1)
+    for sx, sy, cx, cy in ((lx, pw, 0, 0.5 * (ly - pw)), (lx, pw, 0, -0.5 * (ly - pw)),
+                           (pw, ly, 0.5 * (lx - pw), 0), (pw, ly, -0.5 * (lx - pw), 0)):
+        parts.append(box((sx, sy, ph), (cx, cy, height_m + 0.5 * ph), M.CONCRETE, bottom=False))
+    # roof details: stair housing, air-conditioning units, water tank
+    if min(lx, ly) > 8.0:
+        sx, sy = rng.uniform(3, 5), rng.uniform(3, 4.5)
+        cx, cy = rng.uniform(-0.25, 0.25) * lx, rng.uniform(-0.25, 0.25) * ly
+        parts.append(box((sx, sy, 2.8), (cx, cy, height_m + 1.4), M.CONCRETE, bottom=False))
+    for _ in range(rng.integers(2, 7)):
+        sx, sy, sz = rng.uniform(0.8, 2.2), rng.uniform(0.8, 1.6), rng.uniform(0.6, 1.4)
+        cx = rng.uniform(-0.5, 0.5) * (lx - sx - 1.0)
+        cy = rng.uniform(-0.5, 0.5) * (ly - sy - 1.0)
+        parts.append(box((sx, sy, sz), (cx, cy, height_m + 0.5 * sz), M.METAL, bottom=False))
+    if rng.random() < 0.4:
+        r = rng.uniform(0.8, 1.4)
+        cx, cy = rng.uniform(-0.3, 0.3) * lx, rng.uniform(-0.3, 0.3) * ly
+        parts.append(cylinder(r, 2.0, 14, M.METAL, center=(cx, cy, height_m + 2.2)))
+        for dx, dy in ((-0.6, -0.6), (0.6, -0.6), (0.6, 0.6), (-0.6, 0.6)):
+            parts.append(box((0.12, 0.12, 1.2), (cx + dx * r, cy + dy * r, height_m + 0.6), M.METAL))
+    return merge(parts)
+
+
+def tree(rng: np.random.Generator, height_m: float) -> Mesh:
+    """A tree on the ground at the origin: trunk, a few branches, and a sparse crown of leaf clumps.
+
+    The crown is made of many small separate clumps with gaps between them, so rays (LIDAR) partly
+    penetrate it and the ground shows through from above.
+    """
+    crown_r = height_m * rng.uniform(0.22, 0.32)
+    crown_z = height_m - crown_r * rng.uniform(0.9, 1.1)
+    trunk_r = 0.06 + 0.02 * height_m
+    parts = [cylinder(trunk_r, crown_z + 1.0, 8, M.BARK, center=(0, 0, 0.5 * (crown_z - 1.0)),
+                      radius_end=0.7 * trunk_r)]
+    for _ in range(4):
+        az, el = rng.uniform(0, 2 * np.pi), rng.uniform(0.4, 1.0)
+        length = crown_r * rng.uniform(0.6, 0.9)
+        d = np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)])
+        c = np.array([0, 0, crown_z - 0.3 * crown_r]) + 0.5 * length * d
+        b = cylinder(0.5 * trunk_r, length, 6, M.BARK)
+        R = _rot_from_z(d)
+        parts.append(b.transformed(pose(R, c)))
+    n_clumps = int(60 + 5.0 * crown_r**2)
+    u = rng.normal(size=(n_clumps, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    rad = crown_r * rng.random(n_clumps) ** 0.4
+    centers = u * rad[:, None] * np.array([1.0, 1.0, 0.8]) + np.array([0, 0, crown_z])
+    sizes = rng.uniform(0.25, 0.55, n_clumps) * (0.7 + 0.1 * crown_r)
+    base = octahedron(1.0, material=M.FOLIAGE)
+    for c, s in zip(centers, sizes, strict=True):
+        R = _random_rotation(rng)
+        scale = np.diag([s, s * rng.uniform(0.6, 1.0), s * rng.uniform(0.4, 0.8)])
+        parts.append(Mesh(base.vertices @ (R @ scale).T + c, base.triangles, base.material))
+    return merge(parts)
+
+
+def _rot_from_z(d: np.ndarray) -> np.ndarray:
+    z = d / np.linalg.norm(d)
+    x = np.cross([0.0, 1.0, 0.0], z) if abs(z[1]) < 0.9 else np.cross([1.0, 0.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def _random_rotation(rng: np.random.Generator) -> np.ndarray:
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+# ---------------------------------------------------------------------------------------------- layout
+
+
+@dataclass
+class _Item:
+    mesh: Mesh  # in world frame
+    x: float
+    y: float
+    radius: float  # horizontal bounding radius, metres
+    height: float  # top above its ground, metres
+    kind: str
+
+
+class _Keepout:
+    """Rules that decide whether an object may stand somewhere in this run's world."""
+
+    def __init__(self, target_xy: np.ndarray, orbit: Orbit, aim_z: float) -> None:
+        self.t = target_xy
+        c = orbit.center[:2]
+        self.c = c
+        self.radius = orbit.radius_m
+        self.cam_h = orbit.height_m + aim_z  # camera height above the target's ground
+        self.tan_el = orbit.height_m / orbit.radius_m
+
+    def flyable(self, x: float, y: float, r: float, h: float) -> bool:
+        """False when the UAV would fly into the object."""
+        d = np.hypot(x - self.c[0], y - self.c[1])
+        return not (abs(d - self.radius) < r + _UAV_CLEARANCE_M and h > self.cam_h - _UAV_CLEARANCE_M)
+
+    def cannot_hide(self, x: float, y: float, r: float, h: float) -> bool:
+        """False when the object could hide the whole target from some orbit position."""
+        near = max(np.hypot(x - self.t[0], y - self.t[1]) - r, 0.0)
+        if near > self.radius:
+            return True
+        return h <= _TARGET_TOP_M + near * self.tan_el
+
+
+def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
+                target_name: str | None = None, clutter_meshes: Sequence[Mesh] = (),
+                config: SimConfig | None = None) -> World:
+    """Build the world of one scenario run.
+
+    Args:
+        sc: scenario run (range, obliquity, frames; the absent ratio drives the occluder).
+        seed: world seed; the same seed gives the same world.
+        target_mesh: replaces the T-72 (vehicle frame: origin on the ground, x forward, z up).
+        target_name: name reported in the truth (default "t72", or "target" for a custom mesh).
+        clutter_meshes: extra confuser vehicles placed on open ground near the target.
+        config: simulator settings.
+
+    Returns:
+        The world, including the run's orbit.
+    """
+    cfg = config or SimConfig()
+    rng = np.random.default_rng([seed, 0x5EED])
+    tmesh = target_mesh if target_mesh is not None else t72()
+    if tmesh.n_triangles == 0:
+        raise InputError("target mesh has no triangles")
+    name = target_name or ("t72" if target_mesh is None else "target")
+
+    # --- city plan (seed only) ----------------------------------------------------------------------
+    grid_ang = rng.uniform(0, np.pi / 2)
+    spacing = rng.uniform(*_STREET_SPACING_M, 2)
+    widths = rng.uniform(*_STREET_WIDTH_M, 2)
+    offset = rng.uniform(0, 1, 2) * spacing
+    cg, sg = np.cos(grid_ang), np.sin(grid_ang)
+    to_world = np.array([[cg, -sg], [sg, cg]])  # grid (u, v) -> world (x, y)
+    on_street = rng.random() < 0.5
+    t_uv = rng.uniform(-25, 25, 2)
+    if on_street:  # snap the target onto a street along u, driving along it
+        k = np.round((t_uv[1] - offset[1]) / spacing[1])
+        t_uv[1] = offset[1] + k * spacing[1] + rng.uniform(-0.15, 0.15) * widths[1]
+        heading = grid_ang + (0.0 if rng.random() < 0.5 else np.pi) + rng.normal(0, 0.1)
+    else:
+        heading = rng.uniform(0, 2 * np.pi)
+    target_xy = to_world @ t_uv
+    waves = np.column_stack([rng.uniform(0.15, 0.5, 6), rng.uniform(40, 220, 6),
+                             rng.uniform(0, np.pi, 6), rng.uniform(0, 2 * np.pi, 6)])
+    sun_el = np.deg2rad(rng.uniform(*cfg.sun_elevation_deg))
+    sun_az = rng.uniform(0, 2 * np.pi)
+    sun_dir = np.array([np.cos(sun_el) * np.cos(sun_az), np.cos(sun_el) * np.sin(sun_az), np.sin(sun_el)])
+
+    def ground(x, y):
+        return terrain_height(x, y, waves, target_xy)
+
+    T_world_target = pose(rot_z(heading), (target_xy[0], target_xy[1], 0.0))
+    target_world = tmesh.transformed(T_world_target)
+
+    # --- the run's orbit (seed, scenario, run) -------------------------------------------------------
+    orbit = make_orbit(sc, np.array([target_xy[0], target_xy[1], 0.0]),
+                       np.random.default_rng([seed, sc.scenario, sc.run, 0x0B17]), cfg)
+    keep = _Keepout(target_xy, orbit, 1.1)
+
+    # --- ground map: streets with sidewalks, a square around the target -----------------------------
+    rects = []
+    n_lines = int(_TERRAIN_HALF_M * 2 / spacing.min()) + 2
+    for axis in (0, 1):
+        for k in range(-n_lines, n_lines + 1):
+            c = offset[axis] + k * spacing[axis]
+            if abs(c) > _TERRAIN_HALF_M + spacing[axis]:
+                continue
+            uv = np.array([0.0, c]) if axis == 0 else np.array([c, 0.0])
+            xy = to_world @ uv
+            ang = grid_ang if axis == 0 else grid_ang + np.pi / 2
+            half_w = 0.5 * widths[1 - axis] if axis == 0 else 0.5 * widths[0]
+            rects.append([xy[0], xy[1], _TERRAIN_HALF_M * 1.5, half_w + _SIDEWALK_M, np.cos(ang),
+                          np.sin(ang), M.CONCRETE, 0])
+            rects.append([xy[0], xy[1], _TERRAIN_HALF_M * 1.5, half_w, np.cos(ang), np.sin(ang),
+                          M.ASPHALT, 1])
+    if not on_street:
+        sq = rng.uniform(10, 16)
+        rects.append([target_xy[0], target_xy[1], sq, sq * rng.uniform(0.7, 1.0), np.cos(heading),
+                      np.sin(heading), M.CONCRETE if rng.random() < 0.5 else M.DIRT, 0])
+    ground_rects = np.array(rects, dtype=np.float64)
+
+    def street_dist(x, y):
+        uv = to_world.T @ np.array([x - 0.0, y - 0.0])
+        du = np.abs((uv[0] - offset[0] + 0.5 * spacing[0]) % spacing[0] - 0.5 * spacing[0])
+        dv = np.abs((uv[1] - offset[1] + 0.5 * spacing[1]) % spacing[1] - 0.5 * spacing[1])
+        return du - 0.5 * widths[0], dv - 0.5 * widths[1]
+
+    items: list[_Item] = []
+
+    def free(x, y, r):
+        if np.hypot(x - target_xy[0], y - target_xy[1]) < r + 5.0:
+            return False
+        return all(np.hypot(x - it.x, y - it.y) > r + it.radius + 0.5 for it in items)
+
+    def add(mesh_local, x, y, yaw, r, h, kind, sink=0.0):
+        z = float(ground(x, y)) - sink
+        items.append(_Item(place(mesh_local, x, y, z, yaw), x, y, r, h, kind))
+
+    # --- buildings in the blocks between streets ---------------------------------------------------------
+    n_blocks = [int(_CITY_HALF_M / s) + 2 for s in spacing]
+    for bu in range(-n_blocks[0], n_blocks[0] + 1):
+        for bv in range(-n_blocks[1], n_blocks[1] + 1):
+            u0 = offset[0] + bu * spacing[0] + 0.5 * widths[0] + _SIDEWALK_M + 1.0
+            u1 = offset[0] + (bu + 1) * spacing[0] - 0.5 * widths[0] - _SIDEWALK_M - 1.0
+            v0 = offset[1] + bv * spacing[1] + 0.5 * widths[1] + _SIDEWALK_M + 1.0
+            v1 = offset[1] + (bv + 1) * spacing[1] - 0.5 * widths[1] - _SIDEWALK_M - 1.0
+            if rng.random() < 0.15:  # a park block: only trees
+                continue
+            nu, nv = int(rng.integers(1, 3)), int(rng.integers(1, 3))
+            for iu in range(nu):
+                for iv in range(nv):
+                    lu0 = u0 + (u1 - u0) * iu / nu
+                    lu1 = u0 + (u1 - u0) * (iu + 1) / nu
+                    lv0 = v0 + (v1 - v0) * iv / nv
+                    lv1 = v0 + (v1 - v0) * (iv + 1) / nv
+                    fu = (lu1 - lu0) * rng.uniform(0.55, 0.9)
+                    fv = (lv1 - lv0) * rng.uniform(0.55, 0.9)
+                    cu = lu0 + 0.5 * (lu1 - lu0) + rng.uniform(-0.5, 0.5) * (lu1 - lu0 - fu)
+                    cv = lv0 + 0.5 * (lv1 - lv0) + rng.uniform(-0.5, 0.5) * (lv1 - lv0 - fv)
+                    x, y = to_world @ np.array([cu, cv])
+                    if max(abs(x), abs(y)) > _CITY_HALF_M:
+                        continue
+                    h = float(rng.choice([rng.uniform(5, 10), rng.uniform(10, 22), rng.uniform(18, 32)],
+                                         p=[0.4, 0.45, 0.15]))
+                    wall = M.BRICK if rng.random() < 0.3 else M.FACADE
+                    mesh = building((fu, fv), h, rng, wall)
+                    r = 0.5 * np.hypot(fu, fv)
+                    if keep.flyable(x, y, r, h + 3.0) and keep.cannot_hide(x, y, r, h + 3.0) and free(x, y, r):
+                        add(mesh, x, y, grid_ang, r, h, "building", sink=0.0)
+    # --- trees along sidewalks and in open places ----------------------------------------------------
+    n_trees = 0
+    attempts = 0
+    while n_trees < 220 and attempts < 3000:
+        attempts += 1
+        x, y = rng.uniform(-_CITY_HALF_M, _CITY_HALF_M, 2)
+        du, dv = street_dist(x, y)
+        along = (0 < du < _SIDEWALK_M + 2.0) or (0 < dv < _SIDEWALK_M + 2.0)
+        if du < 0 or dv < 0:
+            continue  # on the carriageway
+        if not along and rng.random() < 0.6:
+            continue
+        h = rng.uniform(5.0, 13.0)
+        r = 0.3 * h
+        if np.hypot(x - target_xy[0], y - target_xy[1]) < _CLEAR_AROUND_TARGET_M + r:
+            continue
+        if keep.flyable(x, y, r, h) and free(x, y, r * 0.6):
+            add(tree(rng, h), x, y, 0.0, r * 0.6, h, "tree", sink=0.3)
+            n_trees += 1
+    # --- low walls -------------------------------------------------------------------------------------
+    for _ in range(40):
+        x, y = rng.uniform(-_CITY_HALF_M * 0.6, _CITY_HALF_M * 0.6, 2)
+        du, dv = street_dist(x, y)
+        if min(du, dv) < _SIDEWALK_M:
+            continue
+        length, h = rng.uniform(6, 20), rng.uniform(1.2, 2.2)
+        yaw = grid_ang + (0 if rng.random() < 0.5 else np.pi / 2)
+        mat = M.BRICK if rng.random() < 0.5 else M.CONCRETE
+        wall = box((length, 0.3, h + 0.5), (0, 0, 0.5 * h - 0.25), mat, bottom=False)
+        if keep.flyable(x, y, 0.5 * length, h) and free(x, y, 0.5 * length):
+            add(wall, x, y, yaw, 0.5 * length, h, "wall")
+    # --- parked cars along the kerbs -------------------------------------------------------------------
+    for _ in range(160):
+        x, y = rng.uniform(-_CITY_HALF_M, _CITY_HALF_M, 2)
+        du, dv = street_dist(x, y)
+        if -1.6 < dv < -0.8:
+            yaw = grid_ang + (0 if rng.random() < 0.5 else np.pi)
+        elif -1.6 < du < -0.8:
+            yaw = grid_ang + np.pi / 2 + (0 if rng.random() < 0.5 else np.pi)
+        else:
+            continue
+        if free(x, y, 2.3) and keep.flyable(x, y, 2.3, 1.5):
+            add(car(M.CAR_PAINTS[int(rng.integers(len(M.CAR_PAINTS)))]), x, y, yaw, 2.3, 1.5, "car")
+    # --- confusers: an IFV, a 6x6 truck and any user meshes, on open ground near the target ---------
+    confusers: list[Mesh] = [ifv(M.OLIVE if rng.random() < 0.7 else M.SAND),
+                             truck_6x6(M.OLIVE if rng.random() < 0.7 else M.SAND)]
+    confusers += list(clutter_meshes)
+    for mesh in confusers:
+        lo, hi = mesh.bounds()
+        r = float(np.hypot(*np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))))
+        for _ in range(200):
+            d = rng.uniform(14.0, max(20.0, 0.5 * sc.range_m))
+            a = rng.uniform(0, 2 * np.pi)
+            x, y = target_xy + d * np.array([np.cos(a), np.sin(a)])
+            if free(x, y, r) and keep.flyable(x, y, r, float(hi[2])):
+                add(mesh, x, y, rng.uniform(0, 2 * np.pi), r, float(hi[2]), "confuser")
+                break
+
+    static_parts = [_terrain_mesh(waves, target_xy)] + [it.mesh for it in items]
+    occluder_width = 0.0
+    if sc.absent_ratio > 0:
+        occ, occluder_width = _tuned_occluder(sc, cfg, orbit, target_world, tmesh, T_world_target,
+                                              merge(static_parts), rng, items)
+        if occ is not None:
+            static_parts.append(occ)
+    return World(seed=seed, static=merge(static_parts), target=target_world, target_name=name,
+                 T_world_target=T_world_target, target_local=tmesh, ground_rects=ground_rects,
+                 sun_dir=sun_dir, orbit=orbit, occluder_width_m=occluder_width)
+
+
+def frame_times_s(sc: Scenario, cfg: SimConfig) -> np.ndarray:
+    """Times of the run's frames since the start of the run, seconds."""
+    return np.arange(sc.n_frames) * cfg.frame_interval_s(sc.range_m)
+
+
+def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Mesh, target_local: Mesh,
+                    T_world_target: np.ndarray, static: Mesh, rng: np.random.Generator,
+                    items: list[_Item]) -> tuple[Mesh | None, float]:
+    """A tall building beside the target, widened until the run's share of frames without a visible
+    target reaches the scenario's absent ratio (bisection on the width; ray-box tests, no re-meshing)."""
+    from atr.sim.visibility import target_visibility_rays  # late import: visibility needs a built scene
+
+    times = frame_times_s(sc, cfg)
+    cams = np.array([(orbit.T_world_imu(t) @ cfg.T_imu_cam_matrix)[:3, 3] for t in times])
+    pts, seen, self_vis = target_visibility_rays(static, target_world, target_local, T_world_target,
+                                                 cams, cfg)
+    n_self = np.maximum(self_vis.sum(axis=1), 1)
+    ends = np.broadcast_to(pts, (cams.shape[0],) + pts.shape)
+    txy = T_world_target[:2, 3]
+    az = rng.uniform(0, 2 * np.pi)
+    dist = rng.uniform(11.0, 14.0)
+    depth = rng.uniform(8.0, 12.0)
+    u = np.array([np.cos(az), np.sin(az)])
+    center_xy = txy + (dist + 0.5 * depth) * u
+    height = min(45.0, _TARGET_TOP_M + (dist + depth) * orbit.height_m / orbit.radius_m + 6.0)
+    height = max(height, 12.0)
+
+    def hidden_share(width: float) -> float:
+        if width <= 0:
+            vis = seen
+        else:
+            vis = seen & ~_rays_hit_box(cams, ends, center_xy, az, depth, width, height)
+        frac = vis.sum(axis=1) / n_self
+        present = frac >= cfg.present_min_visible_fraction
+        # a scene is the pair (k, k+1): it has the target when both frames do
+        scene_present = present[:-1] & present[1:]
+        return 1.0 - scene_present.mean()
+
+    if hidden_share(0.0) >= sc.absent_ratio:
+        return None, 0.0
+    lo, hi = 0.0, 120.0
+    if hidden_share(hi) < sc.absent_ratio:
+        lo = hi
+    else:
+        for _ in range(14):
+            mid = 0.5 * (lo + hi)
+            if hidden_share(mid) < sc.absent_ratio:
+                lo = mid
+            else:
+                hi = mid
+    width = hi if lo < hi else lo
+    # drop anything standing where the occluder goes
+    rng_b = np.random.default_rng(int(rng.integers(1 << 31)))
+    occ = building((depth, width), height, rng_b, M.FACADE)
+    occ = place(occ, center_xy[0], center_xy[1], 0.0, az)
+    return occ, float(width)
+
+
+def _rays_hit_box(origins: np.ndarray, ends: np.ndarray, center_xy: np.ndarray, yaw: float,
+                  depth: float, width: float, height: float) -> np.ndarray:
+    """Whether segments origins (F, 3) -> ends (F, S, 3) pass through an upright box (slab test)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.array([[c, s], [-s, c]])  # world -> box frame (rotation by -yaw)
+    d = ends - origins[:, None, :]
+    o = np.broadcast_to(origins[:, None, :], d.shape)
+    oxy = (o[..., :2] - center_xy) @ R.T
+    dxy = d[..., :2] @ R.T
+    lo_b = np.array([-0.5 * depth, -0.5 * width, -5.0])
+    hi_b = np.array([0.5 * depth, 0.5 * width, height])
+    O = np.concatenate([oxy, o[..., 2:3] + np.zeros_like(d[..., 2:3])], axis=-1)
+    D = np.concatenate([dxy, d[..., 2:3]], axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / D
+        t0 = (lo_b - O) * inv
+        t1 = (hi_b - O) * inv
+    tmin = np.nanmax(np.minimum(t0, t1), axis=-1)
+    tmax = np.nanmin(np.maximum(t0, t1), axis=-1)
+    return (tmax >= np.maximum(tmin, 0.0)) & (tmin <= 1.0)
