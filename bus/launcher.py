@@ -155,6 +155,7 @@ class Supervisor:
         self._logs: list[IO[bytes]] = []
         self._lock = threading.Lock()
         self._stopping = False
+        self._once: list[subprocess.Popen[bytes]] = []
 
     def _command(self, spec: ProcessSpec) -> list[str]:
         command = [sys.executable, "-m", "cli.main", "service", spec.service, *spec.args]
@@ -187,6 +188,12 @@ class Supervisor:
             self._command(spec), env=self._env(spec), cwd=REPO, stdout=out, stderr=out,
             start_new_session=True,
         )
+
+    def spawn_once(self, spec: ProcessSpec) -> subprocess.Popen[bytes]:
+        """Start a process that runs to completion (a flight's source): not supervised, not restarted."""
+        popen = self._spawn(spec)
+        self._once.append(popen)
+        return popen
 
     def start(self) -> None:
         """Start every process, the hub first."""
@@ -229,6 +236,10 @@ class Supervisor:
         """
         with self._lock:
             self._stopping = True
+        for popen in self._once:
+            if popen.poll() is None:
+                popen.terminate()
+                popen.wait(grace_s)
         order = sorted(self.running.values(), key=lambda p: {"hub": 2, "recorder": 1}.get(p.spec.role, 0))
         codes: dict[str, int | None] = {}
         for group in (0, 1, 2):

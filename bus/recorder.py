@@ -328,6 +328,7 @@ def run_recorder(
         recorder = Recorder(node.session, out, config, on_problem=report)
         node.recorder = recorder
         log.info("recording %s to %s", ", ".join(recorder.config.key_exprs), recorder.path)
+        node.ready()
         if ready is not None:
             ready.set()
         try:

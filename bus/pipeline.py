@@ -1,0 +1,154 @@
+"""Run a layout around a flight: replay a recording through it (`atr run`), or let its source fly (`atr demo`)."""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from bus.launcher import Supervisor, load_layout, observer_session, wait_until_ready
+from bus.replayer import Replayer
+
+
+@dataclass
+class RunResult:
+    """What a run did."""
+
+    frames: int = 0
+    timeouts: int = 0
+    failures: dict[str, list[int]] = field(default_factory=dict)
+    log_dir: Path = Path()
+
+
+def free_hub_endpoint() -> str:
+    """A loopback endpoint on a free port, so runs never collide with each other or a live layout."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
+
+
+def _start(layout_name: str, out: Path, overrides: list[str], skip_roles: tuple[str, ...],
+           extra_args: dict[str, list[str]] | None = None) -> Supervisor:
+    layout = load_layout(layout_name, {"out": str(out), "hub": free_hub_endpoint()})
+    if extra_args:
+        from dataclasses import replace  # noqa: PLC0415
+
+        layout = replace(layout, processes=tuple(
+            replace(p, args=p.args + tuple(extra_args.get(p.name, ()))) for p in layout.processes
+        ))
+    supervisor = Supervisor(layout, overrides=overrides, skip_roles=skip_roles,
+                            log_dir=out.with_suffix(".logs"))
+    supervisor.start()
+    return supervisor
+
+
+def run_recording(input_path: Path, out: Path, *, layout: str = "local", overrides: list[str] = (),
+                  answer_timeout_s: float = 600.0, ready_timeout_s: float = 900.0) -> RunResult:
+    """Replay `input_path` through `layout` in lock-step, recording everything into `out`."""
+    supervisor = _start(layout, out, list(overrides), ("source",))
+    result = RunResult(log_dir=out.with_suffix(".logs"))
+    try:
+        session = observer_session(supervisor.layout)
+        try:
+            uav = supervisor.layout.variables.get("uav", "uav1")
+            services = [p.name for p in supervisor.specs if p.role not in ("hub",)]
+            wait_until_ready(session, uav, services, ready_timeout_s, supervisor)
+            with Replayer(input_path, session, uav=uav) as replayer:
+                stats = replayer.lock_step(answer_timeout_s=answer_timeout_s)
+            result.frames, result.timeouts = stats.frames, stats.timeouts
+            time.sleep(0.5)  # the last answers reach the recorder
+        finally:
+            session.close()
+    finally:
+        supervisor.stop()
+        result.failures = supervisor.failures()
+    return result
+
+
+def fly_layout(out: Path, *, layout: str = "local", overrides: list[str] = (),
+               source_args: list[str] = (), ready_timeout_s: float = 900.0,
+               on_session: Callable[[object], None] | None = None,
+               flight_timeout_s: float = 3600.0) -> RunResult:
+    """Start the whole layout, its sensor source flying with `source_args`, until the source is done.
+
+    `on_session(session)` is called with an observer session before the flight starts (progress display).
+    """
+    supervisor = _start(layout, out, list(overrides), ("source",))
+    result = RunResult(log_dir=out.with_suffix(".logs"))
+    try:
+        session = observer_session(supervisor.layout)
+        try:
+            uav = supervisor.layout.variables.get("uav", "uav1")
+            services = [p.name for p in supervisor.specs if p.role != "hub"]
+            wait_until_ready(session, uav, services, ready_timeout_s, supervisor)
+            if on_session is not None:
+                on_session(session)
+            source = next(p for p in supervisor.layout.processes if p.role == "source")
+            from dataclasses import replace  # noqa: PLC0415
+
+            source = replace(source, args=source.args + tuple(source_args))
+            popen = supervisor.spawn_once(source)
+            deadline = time.monotonic() + flight_timeout_s
+            while popen.poll() is None and time.monotonic() < deadline:
+                supervisor.poll()
+                time.sleep(0.2)
+            if popen.poll() is None:
+                popen.terminate()
+            if popen.wait() != 0:
+                result.failures[source.name] = [popen.returncode]
+            time.sleep(0.5)
+        finally:
+            session.close()
+    finally:
+        supervisor.stop()
+        result.failures |= supervisor.failures()
+    return result
+
+
+class FlightWatch:
+    """Pairs each Detections message with the truth of its frame as they cross the bus (simulated flights)."""
+
+    def __init__(self, session: object, uav: str, on_scene: Callable[[dict | None, dict], None]) -> None:
+        from bus import codec, keys  # noqa: PLC0415
+
+        self._truth: dict[int, dict] = {}
+        self._on_scene = on_scene
+
+        def on_truth(sample: object) -> None:
+            message = codec.unpack(sample.payload.to_bytes())
+            self._truth[message["stamp_ns"]] = message
+
+        def on_detections(sample: object) -> None:
+            message = codec.unpack(sample.payload.to_bytes())
+            self._on_scene(self._truth.get(message["stamp_ns"]), message)
+
+        self._subs = [session.declare_subscriber(keys.truth(uav), on_truth),
+                      session.declare_subscriber(keys.detections(uav), on_detections)]
+
+    def close(self) -> None:
+        """Stop watching."""
+        for sub in self._subs:
+            sub.undeclare()
+        self._subs = []
+
+
+def flight_scenes(path: Path, uav: str = "uav1") -> list[tuple[dict | None, dict]]:
+    """(truth, detections) per Detections message of a recording, in order."""
+    from mcap.reader import make_reader  # noqa: PLC0415
+
+    from bus import codec, keys  # noqa: PLC0415
+
+    truth: dict[int, dict] = {}
+    scenes = []
+    with open(path, "rb") as stream:
+        for _, channel, message in make_reader(stream).iter_messages(
+            topics=[keys.truth(uav), keys.detections(uav)], log_time_order=False
+        ):
+            data = codec.unpack(message.data)
+            if channel.topic == keys.truth(uav):
+                truth[data["stamp_ns"]] = data
+            else:
+                scenes.append((data, channel.topic))
+    return [(truth.get(d["stamp_ns"]), d) for d, _ in scenes]
