@@ -1,12 +1,12 @@
-"""IMU integration benchmark: time per 100-sample batch (200 Hz, one 0.5 s batch), and accuracy figures.
+"""IMU integration benchmark: time per 100-sample batch (0.5 s at 200 Hz), and accuracy figures.
 
 Timing: median of many runs of
   - atr.imu.integrate (public call: validation + numba kernel + NavState),
   - the numba strapdown kernel alone,
   - PoseIntegrator.add_imu + camera_pose (what the service does per batch and frame),
   - reference: the same midpoint/trapezoid scheme written as a plain scipy Rotation loop.
-Accuracy (with --accuracy): EuRoC V1_01_easy windows (strapdown and literal paper eq. 4), the numbers
-in docs/imu.md.
+Accuracy (with --accuracy): EuRoC V1_01_easy windows (strapdown and literal paper eq. 4), the
+numbers in docs/imu.md.
 
 Run: ./dev bench imu [--accuracy]
 """
@@ -38,7 +38,7 @@ def _batch(seed: int = 0):
 
 
 def _scipy_loop(state: NavState, t_ns, gyro, accel, g):
-    """Reference: one scipy Rotation per sample, same scheme as the kernel (minus the coning term)."""
+    """Reference: one scipy Rotation per sample, the kernel's scheme minus the coning term."""
     R = Rotation.from_matrix(state.R_world_imu)
     p, v = state.p_world_m.copy(), state.v_world_mps.copy()
     t = np.concatenate(([state.stamp_ns], t_ns))
@@ -95,12 +95,13 @@ def bench_timing() -> None:
             lambda: _scipy_loop(s0, t, gyro, accel, gw), REPEATS // 10),
     }  # fmt: skip
     ref = results["reference: scipy Rotation loop"]
-    print(f"# {N_SAMPLES}-sample batch at 200 Hz, median of {REPEATS} runs (reference {REPEATS // 10})")
+    print(f"# {N_SAMPLES}-sample batch at 200 Hz, median of {REPEATS} runs "
+          f"(reference {REPEATS // 10})")
     print("| path | median us | vs scipy loop |")
     print("|---|---:|---:|")
     for name, us in results.items():
         print(f"| {name} | {us:.1f} | {ref / us:.1f}x faster |")
-    # the reference must agree with the kernel (same scheme, no coning term): a sanity check, not a test
+    # the reference must agree with the kernel (same scheme, no coning term): a sanity check
     R_ref, p_ref, _ = _scipy_loop(s0, t, gyro, accel, gw)
     s1 = integrate(s0, t, gyro, accel, config=cfg)
     dR = Rotation.from_matrix(R_ref.T @ s1.R_world_imu).magnitude()

@@ -1,4 +1,4 @@
-"""IMU pose integration (paper §II-B-1, eqs. 1-4): gyro + accelerometer -> camera pose and R*_cam."""
+"""IMU pose integration (paper §II-B-1, eqs. 1-4): gyro + accelerometer -> camera pose, R*_cam."""
 
 from atr.imu.attitude import attitude_angles, attitude_matrix, invert_pose, relative_camera_pose
 from atr.imu.config import ImuConfig

@@ -1,8 +1,10 @@
-"""Numba kernels of the IMU integration: one sequential pass over the samples (the rotation chain cannot
+"""Numba kernels of the IMU integration: one sequential pass over the samples (the rotation chain
+cannot
 be vectorised, so a compiled loop is the fast way; 100 samples take a few microseconds).
 
-Both kernels take the samples *including* the left endpoint (the measurement at the start state's time):
-gyro and accel are (N+1, 3), dt_s is (N,), and the measurements are taken as linear in time between samples.
+Both kernels take the samples *including* the left endpoint (the measurement at the start state's
+time): gyro and accel are (N+1, 3), dt_s is (N,), and the measurements are taken as linear in time
+between samples.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ def _quat_to_matrix(q: np.ndarray, R: np.ndarray) -> None:
 
 @numba.njit(cache=True)
 def matrix_to_quat(R: np.ndarray, q: np.ndarray) -> None:
-    """Rotation matrix -> unit quaternion (w, x, y, z), Shepperd's method (stable for every angle)."""
+    """Rotation matrix -> unit quaternion (w, x, y, z), Shepperd's method (stable at any angle)."""
     tr = R[0, 0] + R[1, 1] + R[2, 2]
     if tr > R[0, 0] and tr > R[1, 1] and tr > R[2, 2]:
         s = 2.0 * np.sqrt(1.0 + tr)
@@ -103,10 +105,11 @@ def strapdown_kernel(
     """Strapdown propagation from R0 (3, 3); writes the state at every sample into q_out (N+1, 4)
     (w, x, y, z), p_out, v_out (N+1, 3), and the final attitude into R_end (3, 3).
 
-    Attitude: q_{k+1} = q_k ⊗ Exp(h (w_k + w_{k+1}) / 2 + h^2 / 12 · w_k × w_{k+1}) — the rotation vector
-    of a linearly varying body rate to third order (Bortz coning term), with bias-corrected rates.
-    Velocity: trapezoid on the world acceleration a = R (f - b_a) + g. Position: exact for a linear in time,
-    p_{k+1} = p_k + h v_k + h^2 (2 a_k + a_{k+1}) / 6.
+    Attitude: q_{k+1} = q_k ⊗ Exp(h (w_k + w_{k+1}) / 2 + h^2 / 12 · w_k × w_{k+1}) — the rotation
+    vector of a linearly varying body rate to third order (Bortz coning term), with bias-corrected
+    rates.
+    Velocity: trapezoid on the world acceleration a = R (f - b_a) + g. Position: exact for a linear
+    in time, p_{k+1} = p_k + h v_k + h^2 (2 a_k + a_{k+1}) / 6.
     """
     n = dt_s.shape[0]
     q = np.empty(4)
@@ -150,7 +153,9 @@ def strapdown_kernel(
             for j in range(3):
                 a_next[i] += R[i, j] * (accel[k + 1, j] - accel_bias[j])
         for i in range(3):
-            p_out[k + 1, i] = p_out[k, i] + h * v_out[k, i] + h * h * (2.0 * a_prev[i] + a_next[i]) / 6.0
+            p_out[k + 1, i] = (
+                p_out[k, i] + h * v_out[k, i] + h * h * (2.0 * a_prev[i] + a_next[i]) / 6.0
+            )
             v_out[k + 1, i] = v_out[k, i] + 0.5 * h * (a_prev[i] + a_next[i])
             a_prev[i] = a_next[i]
     for i in range(3):
@@ -174,8 +179,8 @@ def paper_kernel(
 
     Angles (u, v, w) of eq. (3) rotate about z, y, x; each is the time integral (trapezoid) of the
     bias-corrected body rate about that axis, as if body rates were Euler-angle rates. Eq. (4): the
-    body-axis acceleration (bias-corrected specific force, gravity not removed) integrated twice from zero
-    velocity, per axis, with no rotation between samples.
+    body-axis acceleration (bias-corrected specific force, gravity not removed) integrated twice
+    from zero velocity, per axis, with no rotation between samples.
     """
     n = dt_s.shape[0]
     for i in range(3):

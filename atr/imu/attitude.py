@@ -1,9 +1,9 @@
 """Attitude and relative pose as printed in the paper (§II-B-1, eqs. 1-3).
 
 Eq. (3) as printed is R = Rz(u) · Ry(v) · Rx(w), the aerospace z-y-x matrix, with u, v, w called
-"pitch, roll and yaw". The matrix itself rotates by u about z and by w about x, i.e. the printed labels
-put "pitch" where the usual convention has yaw. We keep the matrix exactly as printed and the paper's
-argument order; see docs/imu.md.
+"pitch, roll and yaw". The matrix itself rotates by u about z and by w about x, i.e. the printed
+labels put "pitch" where the usual convention has yaw. We keep the matrix exactly as printed and the
+paper's argument order; see docs/imu.md.
 """
 
 from __future__ import annotations
@@ -86,7 +86,8 @@ def relative_camera_pose(T_world_cam_t: np.ndarray, T_world_cam_t1: np.ndarray) 
         T_world_cam_t1: (4, 4) world-from-camera pose at frame t+1.
 
     Returns:
-        (4, 4) float64 T_cam_t1_cam_t: maps a point from the camera frame at t to the camera frame at t+1.
+        (4, 4) float64 T_cam_t1_cam_t: maps a point from the camera frame at t to the camera frame
+        at t+1.
     """
     T_t = _check_pose(T_world_cam_t, "T_world_cam_t")
     return invert_pose(T_world_cam_t1) @ T_t

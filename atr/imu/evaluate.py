@@ -1,8 +1,8 @@
 """Accuracy of IMU pose integration against a ground-truth trajectory over fixed time windows.
 
-Pure functions on arrays: each window starts from the ground-truth state (pose, velocity, biases) at a
-ground-truth instant, integrates the IMU to the ground-truth instant nearest `window_s` later, and compares
-the integrated motion with the ground truth's.
+Pure functions on arrays: each window starts from the ground-truth state (pose, velocity, biases) at
+a ground-truth instant, integrates the IMU to the ground-truth instant nearest `window_s` later, and
+compares the integrated motion with the ground truth's.
 """
 
 from __future__ import annotations
@@ -57,8 +57,8 @@ def window_errors(
 
     Args:
         imu_t_ns, gyro_radps, accel_mps2: the whole IMU stream, (N,), (N, 3), (N, 3).
-        gt_t_ns: (M,) ground-truth stamps, ns. gt_R_world_imu: (M, 3, 3). gt_p_world_m, gt_v_world_mps,
-            gt_gyro_bias_radps, gt_accel_bias_mps2: (M, 3).
+        gt_t_ns: (M,) ground-truth stamps, ns. gt_R_world_imu: (M, 3, 3). gt_p_world_m,
+            gt_v_world_mps, gt_gyro_bias_radps, gt_accel_bias_mps2: (M, 3).
         start_indices: (K,) indices into the ground truth where windows start.
         window_s: window length, seconds (ends on the nearest ground-truth instant).
         config: integration settings (its T_imu_cam is ignored: errors are of the IMU pose).
@@ -110,7 +110,8 @@ class GroundTruthErrors:
         velocity_error_mps: RMS of the ground-truth speed at rest, m/s.
         position_noise_m: per-sample position noise at rest: 3-D norm of the per-axis robust std of
             second differences / sqrt(6), metres.
-        rotation_noise_rad: per-sample rotation noise at rest, the same on rotation vectors, radians.
+        rotation_noise_rad: per-sample rotation noise at rest, the same on rotation vectors,
+            radians.
     """
 
     world_tilt_rad: float
@@ -141,14 +142,19 @@ def ground_truth_errors(
     i = 0  # the static segment starts at the first ground-truth row
     m = (imu_t_ns >= gt_t_ns[0]) & (imu_t_ns <= static_until_ns)
     if m.sum() < 10:
-        raise InputError(f"static segment up to {static_until_ns} ns holds {int(m.sum())} IMU samples")
+        raise InputError(
+            f"static segment up to {static_until_ns} ns holds {int(m.sum())} IMU samples (need 10)"
+        )
     f_world = (gt_R_world_imu[i] @ (accel_mps2[m] - gt_accel_bias_mps2[i]).T).T.mean(axis=0)
     tilt = float(np.arctan2(np.hypot(f_world[0], f_world[1]), f_world[2]))
     bias_err = float(np.linalg.norm(gyro_radps[m].mean(axis=0) - gt_gyro_bias_radps[i]))
-    # At rest the true velocity is zero and the true pose constant: what the ground truth shows is its error.
+    # At rest the true velocity is zero and the true pose constant: what the ground truth shows is
+    # its error.
     k = int(np.searchsorted(gt_t_ns, static_until_ns, side="right"))
     if k < 5:
-        raise InputError(f"static segment up to {static_until_ns} ns holds {k} ground-truth rows (need 5)")
+        raise InputError(
+            f"static segment up to {static_until_ns} ns holds {k} ground-truth rows (need 5)"
+        )
     vel_err = float(np.sqrt(np.mean(np.sum(gt_v_world_mps[:k] ** 2, axis=1))))
     p = gt_p_world_m[:k]
     d2 = p[2:] - 2.0 * p[1:-1] + p[:-2]

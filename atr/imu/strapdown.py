@@ -2,13 +2,14 @@
 
 Two integrations, chosen by ImuConfig.integration:
 
-- "strapdown": quaternion attitude from the bias-corrected gyro (third-order rotation vector per sample
-  interval), specific force rotated into the world frame, gravity removed, velocity and position carried
-  across frames. This is what the paper's eq. (4) needs to be right in flight.
+- "strapdown": quaternion attitude from the bias-corrected gyro (third-order rotation vector per
+  sample interval), specific force rotated into the world frame, gravity removed, velocity and
+  position carried across frames. This is what the paper's eq. (4) needs to be right in flight.
 - "paper": the literal eqs. (3)-(4): attitude angles integrated per axis and put through eq. (3);
-  translation = double integral of the body-axis acceleration between two frames, from zero velocity,
-  with no gravity term (right only when the vehicle starts each interval at rest and level... and even then
-  gravity is integrated). Kept so the difference is measured, see docs/imu.md.
+  translation = double integral of the body-axis acceleration between two frames, from zero
+  velocity, with no gravity term (right only when the vehicle starts each interval at rest and
+  level... and even then gravity is integrated). Kept so the difference is measured, see
+  docs/imu.md.
 
 Measurements are taken as linear in time between samples; a frame time between two samples gets its
 measurement by linear interpolation.
@@ -38,7 +39,8 @@ class NavState:
         p_world_m: (3,) float64, IMU position in the world, metres.
         v_world_mps: (3,) float64, IMU velocity in the world, m/s.
         gyro_bias_radps: (3,) float64, gyro bias (subtracted from the raw rate), rad/s.
-        accel_bias_mps2: (3,) float64, accelerometer bias (subtracted from the raw specific force), m/s^2.
+        accel_bias_mps2: (3,) float64, accelerometer bias (subtracted from the raw specific force),
+            m/s^2.
     """
 
     stamp_ns: int
@@ -62,7 +64,7 @@ class NavState:
     @classmethod
     def _trusted(cls, stamp_ns: int, R: np.ndarray, p: np.ndarray, v: np.ndarray, bg: np.ndarray,
                  ba: np.ndarray) -> NavState:  # fmt: skip
-        """Build from arrays this module produced itself (already float64, right shapes): skips checks."""
+        """Build from arrays this module produced itself (float64, right shapes): no checks."""
         s = object.__new__(cls)
         s.stamp_ns, s.R_world_imu, s.p_world_m, s.v_world_mps = stamp_ns, R, p, v
         s.gyro_bias_radps, s.accel_bias_mps2 = bg, ba
@@ -93,23 +95,23 @@ def integrate(
 ) -> NavState:
     """Propagate a navigation state through a batch of IMU samples.
 
-    The measurement at state.stamp_ns is taken as the first sample (held back if t_ns[0] > stamp_ns);
-    between samples it is linear in time.
+    The measurement at state.stamp_ns is taken as the first sample (held back if t_ns[0] >
+    stamp_ns); between samples it is linear in time.
 
     Args:
         state: state at state.stamp_ns.
         t_ns: (N,) int64 sample times, ns, strictly increasing, t_ns[0] >= state.stamp_ns.
         gyro_radps: (N, 3) float64 body angular rate in the IMU frame, rad/s.
-        accel_mps2: (N, 3) float64 specific force in the IMU frame (gravity included, i.e. about +g up
-            at rest), m/s^2.
+        accel_mps2: (N, 3) float64 specific force in the IMU frame (gravity included, i.e. about +g
+            up at rest), m/s^2.
         config: integration choice, gravity, gap limits.
 
     Returns:
         The state at t_ns[-1] (biases carried unchanged).
 
     Raises:
-        InputError: empty batch, wrong shapes, NaN samples, non-increasing times, a sample before the
-            state, or a gap longer than config.max_gap_samples periods.
+        InputError: empty batch, wrong shapes, NaN samples, non-increasing times, a sample before
+            the state, or a gap longer than config.max_gap_samples periods.
     """
     t, gyro, accel = check_imu_samples(t_ns, gyro_radps, accel_mps2, config=config)
     if t[0] < state.stamp_ns:
@@ -176,7 +178,7 @@ def _check_gap(t0_ns: int, t1_ns: int, config: ImuConfig, what0: str, what1: str
 def _propagate(
     state: NavState, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, config: ImuConfig
 ) -> NavState:
-    """Integrate from t[0] == state.stamp_ns to t[-1]; gyro/accel hold the measurement at every t."""
+    """Integrate from t[0] == state.stamp_ns to t[-1]; gyro/accel: the measurement at every t."""
     if t.shape[0] == 1:
         return _copy(state)
     dt_s = np.diff(t).astype(np.float64) / _NS_PER_S
@@ -188,7 +190,8 @@ def _propagate(
         R = np.empty((3, 3))
         strapdown_kernel(
             state.R_world_imu, state.p_world_m, state.v_world_mps, state.gyro_bias_radps,
-            state.accel_bias_mps2, config.gravity_world_mps2, dt_s, gyro, accel, q_out, p_out, v_out, R,
+            state.accel_bias_mps2, config.gravity_world_mps2, dt_s, gyro, accel,
+            q_out, p_out, v_out, R,
         )  # fmt: skip
         return NavState._trusted(int(t[-1]), R, p_out[-1], v_out[-1], state.gyro_bias_radps.copy(),
                                  state.accel_bias_mps2.copy())  # fmt: skip
@@ -213,8 +216,9 @@ class PoseIntegrator:
     """Turns a stream of IMU batches into camera poses at frame times; one verb per input.
 
     Frames must come in time order. Each camera_pose call integrates from the previous frame (or the
-    initial state) to the frame's stamp and makes that the new starting point. In "paper" mode this is
-    exactly the paper's per-frame-pair window: eq. (4) starts every frame interval from zero velocity.
+    initial state) to the frame's stamp and makes that the new starting point. In "paper" mode this
+    is exactly the paper's per-frame-pair window: eq. (4) starts every frame interval from zero
+    velocity.
 
     Example:
         pi = PoseIntegrator(ImuConfig(), NavState.at_rest(t0_ns))
@@ -251,15 +255,16 @@ class PoseIntegrator:
             accel_mps2: (N, 3) specific force in the IMU frame (gravity included), m/s^2.
 
         Raises:
-            InputError: bad batch (see check_imu_samples), a batch not after the previous one, or a gap.
+            InputError: bad batch (see check_imu_samples), a batch not after the previous one, or a
+                gap.
         """
         t, gyro, accel = check_imu_samples(t_ns, gyro_radps, accel_mps2, config=self._config)
         if self._t.shape[0]:
             last = int(self._t[-1])
             if t[0] <= last:
                 raise InputError(
-                    f"IMU batch starts at {int(t[0])} ns, not after the previous batch's last sample "
-                    f"{last} ns"
+                    f"IMU batch starts at {int(t[0])} ns, not after the previous batch's last "
+                    f"sample {last} ns"
                 )
             _check_gap(last, int(t[0]), self._config, "the previous batch's last sample", "t_ns[0]")
         if self._first_sample_ns is None:
@@ -292,14 +297,17 @@ class PoseIntegrator:
                 f"{state.stamp_ns} ns; frames must come in time order"
             )
         if self._first_sample_ns is None or stamp < self._first_sample_ns:
-            first = "none received" if self._first_sample_ns is None else f"{self._first_sample_ns} ns"
+            first = (
+                "none received" if self._first_sample_ns is None else f"{self._first_sample_ns} ns"
+            )
             raise InputError(f"frame stamp {stamp} ns is before the first IMU sample ({first})")
         last = int(self._t[-1])
         max_extra = self._config.max_extrapolation_samples * self._config.sample_period_ns
         if stamp - last > max_extra:
             raise InputError(
-                f"frame stamp {stamp} ns is {(stamp - last) / 1e6:.3f} ms after the last IMU sample "
-                f"{last} ns (at most {max_extra / 1e6:.3f} ms allowed); send the IMU batch first"
+                f"frame stamp {stamp} ns is {(stamp - last) / 1e6:.3f} ms after the last IMU "
+                f"sample {last} ns (at most {max_extra / 1e6:.3f} ms allowed); send the IMU batch "
+                "first"
             )
         t, gyro, accel = self._window(state.stamp_ns, stamp)
         self._state = _propagate(state, t, gyro, accel, self._config)
@@ -342,8 +350,9 @@ class PoseIntegrator:
 
 
 def _copy(s: NavState) -> NavState:
-    return NavState._trusted(s.stamp_ns, s.R_world_imu.copy(), s.p_world_m.copy(), s.v_world_mps.copy(),
-                    s.gyro_bias_radps.copy(), s.accel_bias_mps2.copy())  # fmt: skip
+    return NavState._trusted(s.stamp_ns, s.R_world_imu.copy(), s.p_world_m.copy(),
+                             s.v_world_mps.copy(), s.gyro_bias_radps.copy(),
+                             s.accel_bias_mps2.copy())  # fmt: skip
 
 
 def _vector(x: np.ndarray, shape: tuple[int, ...], name: str) -> np.ndarray:

@@ -2,7 +2,8 @@
 
 Reads what pose integration needs: imu0 samples, imu0 noise model, sensor extrinsics (T_BS) and the
 ground-truth state (pose, velocity, biases) in the `groundtruth/<seq>.csv` layout
-(`#time(ns),px,py,pz,qw,qx,qy,qz,vx,vy,vz,bwx,bwy,bwz,bax,bay,baz`, the pose of the body/IMU in the world).
+(`#time(ns),px,py,pz,qw,qx,qy,qz,vx,vy,vz,bwx,bwy,bwz,bax,bay,baz`, the pose of the body/IMU in the
+world).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from atr.errors import InputError
 
 @dataclass(frozen=True)
 class EurocImu:
-    """IMU samples: t_ns (N,) int64 ns; gyro_radps (N, 3) rad/s; accel_mps2 (N, 3) specific force, m/s^2."""
+    """IMU samples: t_ns (N,) int64 ns; gyro_radps (N, 3) rad/s; accel_mps2 (N, 3) m/s^2."""
 
     t_ns: np.ndarray
     gyro_radps: np.ndarray
@@ -76,7 +77,7 @@ def read_imu(root: Path) -> EurocImu:
 
 
 def read_groundtruth(path: Path) -> EurocGroundTruth:
-    """Read a ground-truth csv: time(ns), p (3), q (w, x, y, z), v (3), gyro bias (3), accel bias (3)."""
+    """Read a ground-truth csv: time(ns), p, q (w, x, y, z), v, gyro bias, accel bias."""
     t, d = _read_csv(Path(path), 17)
     q_wxyz = d[:, 3:7]
     R = Rotation.from_quat(q_wxyz[:, [1, 2, 3, 0]]).as_matrix()

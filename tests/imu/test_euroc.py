@@ -1,10 +1,10 @@
 """Against REAL data: EuRoC MAV V1_01_easy (ADIS16448 IMU at 200 Hz, Vicon-based ground truth).
 
-Windows of 0.05 s, 0.5 s and 1 s start from the ground-truth state and biases at ~490 instants of the
-flight; the integrated pose at the window's end is compared with the ground truth's. The allowed error is
-derived in atr.imu.evaluate.error_bound from the IMU's noise densities (imu0/sensor.yaml) plus the ground
-truth's own errors measured at rest (docs/imu.md); we allow the median 1.5x and the worst window 4x that
-one-sigma-scale figure.
+Windows of 0.05 s, 0.5 s and 1 s start from the ground-truth state and biases at ~490 instants of
+the flight; the integrated pose at the window's end is compared with the ground truth's. The allowed
+error is derived in atr.imu.evaluate.error_bound from the IMU's noise densities (imu0/sensor.yaml)
+plus the ground truth's own errors measured at rest (docs/imu.md); we allow the median 1.5x and the
+worst window 4x that one-sigma-scale figure.
 """
 
 from pathlib import Path

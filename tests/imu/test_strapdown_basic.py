@@ -19,7 +19,8 @@ def test_constant_rate_reproduces_closed_form_rotation():
     n = 400
     t = np.arange(1, n + 1, dtype=np.int64) * PERIOD_NS
     s = NavState.at_rest(0)
-    out = integrate(s, t, np.tile(omega, (n, 1)), np.zeros((n, 3)), config=ImuConfig(gravity_mps2=0.0))
+    cfg = ImuConfig(gravity_mps2=0.0)
+    out = integrate(s, t, np.tile(omega, (n, 1)), np.zeros((n, 3)), config=cfg)
     R_ref = Rotation.from_rotvec(omega * t[-1] / 1e9).as_matrix()
     err = Rotation.from_matrix(R_ref.T @ out.R_world_imu).magnitude()
     assert err < 1e-10
@@ -68,7 +69,8 @@ def test_biases_are_subtracted():
     ("mutate", "match"),
     [
         (lambda t, g, a: (t[::-1].copy(), g, a), "strictly increasing"),
-        (lambda t, g, a: (t, np.where(np.arange(10)[:, None] == 4, np.nan, g), a), r"gyro_radps\[4\]"),
+        (lambda t, g, a: (t, np.where(np.arange(10)[:, None] == 4, np.nan, g), a),
+         r"gyro_radps\[4\]"),
         (lambda t, g, a: (t, g, a[:, :2]), "accel_mps2 must have shape"),
         (lambda t, g, a: (np.concatenate((t[:5], t[5:] + 100 * PERIOD_NS)), g, a), "gap"),
         (lambda t, g, a: (t[:0], g[:0], a[:0]), "non-empty"),

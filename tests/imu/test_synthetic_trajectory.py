@@ -1,5 +1,5 @@
-"""A circle flown with sinusoidal pitch and roll: gyro and specific force are derived analytically here
-(not by the code under test) and integrated back into poses."""
+"""A circle flown with sinusoidal pitch and roll: gyro and specific force are derived analytically
+here (not by the code under test) and integrated back into poses."""
 
 import numpy as np
 import pytest
@@ -20,7 +20,8 @@ def truth(t: np.ndarray):
     """Pose, velocity, body rate and specific force at times t (s), in closed form."""
     c, s = np.cos(OMEGA * t), np.sin(OMEGA * t)
     p = np.stack([RADIUS_M * c, RADIUS_M * s, 50.0 + BOB_M * np.sin(BOB_RATE * t)], axis=-1)
-    v = np.stack([-RADIUS_M * OMEGA * s, RADIUS_M * OMEGA * c, BOB_M * BOB_RATE * np.cos(BOB_RATE * t)], -1)
+    v = np.stack([-RADIUS_M * OMEGA * s, RADIUS_M * OMEGA * c,
+                  BOB_M * BOB_RATE * np.cos(BOB_RATE * t)], -1)  # fmt: skip
     acc = np.stack([-RADIUS_M * OMEGA**2 * c, -RADIUS_M * OMEGA**2 * s,
                     -BOB_M * BOB_RATE**2 * np.sin(BOB_RATE * t)], -1)  # fmt: skip
     # z-y-x Euler angles: yaw along the tangent, sinusoidal pitch and roll
@@ -111,7 +112,8 @@ def test_paper_mode_is_far_off_in_flight():
     # the literal eq. (4) forgets the initial velocity (12 m/s) and gravity: metres off in 0.5 s
     t0 = 1.0
     t_ns, gyro, accel = _samples(t0, 0.5)
-    s1 = integrate(_start_state(t0), t_ns[1:], gyro[1:], accel[1:], config=ImuConfig(integration="paper"))
+    cfg = ImuConfig(integration="paper")
+    s1 = integrate(_start_state(t0), t_ns[1:], gyro[1:], accel[1:], config=cfg)
     _, trans_m = _errors(s1.R_world_imu, s1.p_world_m, t_ns[-1] / 1e9)
     assert trans_m > 12.0 * 0.5 * 0.5
 
