@@ -1,0 +1,129 @@
+"""The recorder as a real process on a real Zenoh bus: what it writes, bad input, SIGTERM and kill -9."""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from pathlib import Path
+
+import msgpack
+import pytest
+from mcap.reader import make_reader
+
+from bus import codec, keys, mcap_tools, schemas
+from bus.session import open_session
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _procs import Watcher, atr, finish, helper  # noqa: E402
+from conftest import peer_config  # noqa: E402  (tests/ is on sys.path via _procs)
+
+pytestmark = pytest.mark.e2e
+
+INPUTS = ("sim/uav1/truth", "atr/uav1/imu", "atr/uav1/camera/image", "atr/uav1/lidar/cloud")
+
+
+def _messages(path: Path) -> list[tuple[str, object, object]]:
+    with open(path, "rb") as f:
+        return [(c.topic, s, m) for s, c, m in make_reader(f, validate_crcs=True).iter_messages()]
+
+
+def _start_recorder(hub: str, watcher: Watcher, out: Path, *extra: str):
+    proc = atr(hub, "record", "--out", str(out), *extra)
+    watcher.wait_for("recorder")
+    return proc
+
+
+def test_records_every_message_as_sent_and_closes_cleanly_on_sigterm(hub: str, tmp_path: Path) -> None:
+    out = tmp_path / "rec.mcap"
+    watcher = Watcher(hub)
+    try:
+        recorder = _start_recorder(hub, watcher, out)
+        code, err = finish(helper(hub, "publish", "--frames", "4"))
+        assert code == 0, err
+        time.sleep(0.3)
+        recorder.send_signal(signal.SIGTERM)
+        code, err = finish(recorder)
+        assert code == 0, err
+    finally:
+        watcher.close()
+
+    assert mcap_tools.check(out) == []
+    records = _messages(out)
+    data = [(t, s, m) for t, s, m in records if t in INPUTS + ("atr/uav1/pose/camera",)]
+    assert len(data) == 4 * 5
+    for topic, schema, message in data:
+        decoded = codec.decode(keys.message_type(topic), message.data)  # the bytes decode as sent
+        assert schema.name == keys.message_type(topic)
+        assert schema.encoding == "jsonschema" and schema.data == schemas.schema_bytes(schema.name)
+        assert message.publish_time == decoded["stamp_ns"] and message.sequence == decoded["seq"]
+    frames = [codec.unpack(m.data)["frame_seq"] for t, _, m in data if t == "atr/uav1/camera/image"]
+    assert frames == [0, 1, 2, 3]
+    log_times = [m.log_time for _, _, m in records]
+    assert log_times == sorted(log_times)
+    # its own Status carries the counters
+    statuses = [codec.unpack(m.data) for t, _, m in records if t == "atr/uav1/recorder/status"]
+    assert statuses and all({"messages", "bytes"} <= set(s["counters"]) for s in statuses)
+    assert max(s["counters"]["messages"] for s in statuses) > 0
+
+
+def test_bad_input_from_a_foreign_session_is_recorded_as_it_came(hub: str, tmp_path: Path) -> None:
+    out = tmp_path / "bad.mcap"
+    watcher = Watcher(hub)
+    foreign = open_session(peer_config(hub))
+    not_msgpack = b"\xc1\xff definitely not msgpack"
+    breaks_schema = msgpack.packb({"stamp_ns": 77, "seq": 3, "encoding": "bgr16"})
+    unknown_key = msgpack.packb({"hello": 1})
+    sent = [
+        ("atr/uav1/camera/image", not_msgpack, None),
+        ("atr/uav1/imu", breaks_schema, None),
+        ("atr/uav1/lidar/cloud", b"", codec.encode_attachment(9, 123, "foreign")),
+        ("atr/elsewhere/unknown/thing", unknown_key, b"\x00garbage attachment"),
+    ]
+    try:
+        recorder = _start_recorder(hub, watcher, out)
+        time.sleep(0.3)
+        for key, payload, attachment in sent:
+            foreign.put(key, payload, attachment=attachment)
+        time.sleep(0.5)
+        recorder.send_signal(signal.SIGINT)
+        code, err = finish(recorder)
+        assert code == 0, err
+    finally:
+        foreign.close()
+        watcher.close()
+
+    assert mcap_tools.check(out) == []
+    got = {t: (s, m) for t, s, m in _messages(out) if t in {k for k, _, _ in sent}}
+    for key, payload, _ in sent:
+        assert got[key][1].data == payload, key
+    # seq/stamp: from the attachment, else the payload's own fields, else 0
+    assert (got["atr/uav1/lidar/cloud"][1].sequence, got["atr/uav1/lidar/cloud"][1].publish_time) == (9, 123)
+    assert (got["atr/uav1/imu"][1].sequence, got["atr/uav1/imu"][1].publish_time) == (3, 77)
+    assert (got["atr/uav1/camera/image"][1].sequence, got["atr/uav1/camera/image"][1].publish_time) == (0, 0)
+    assert got["atr/elsewhere/unknown/thing"][0] is None  # outside the contract: no schema
+    assert got["atr/uav1/imu"][0].name == "ImuBatch"
+
+
+def test_kill_9_leaves_a_file_that_recovers_up_to_its_last_chunk(hub: str, tmp_path: Path) -> None:
+    out = tmp_path / "crash.mcap"
+    watcher = Watcher(hub)
+    try:
+        recorder = _start_recorder(hub, watcher, out, "--flush-interval", "0.2")
+        code, err = finish(helper(hub, "publish", "--frames", "6", "--image-shape", "240", "320"))
+        assert code == 0, err
+        time.sleep(1.0)  # several flush intervals: every published message is in a written chunk
+        recorder.send_signal(signal.SIGKILL)
+        finish(recorder)
+    finally:
+        watcher.close()
+
+    problems = mcap_tools.check(out)
+    assert problems and any("Footer" in p or "truncated" in p for p in problems), problems
+    fixed = tmp_path / "fixed.mcap"
+    code = __import__("cli.main", fromlist=["main"]).main(["mcap", "recover", str(out), str(fixed)])
+    assert code == 0
+    assert mcap_tools.check(fixed) == []
+    topics = [t for t, _, _ in _messages(fixed)]
+    for key in INPUTS:
+        assert topics.count(key) == 6, key
