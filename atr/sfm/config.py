@@ -55,6 +55,13 @@ class SfmConfig:
     filter area (§II-B-1: 1e-3)."""
     surf_initial_step_px: int = 2
     """Sampling step of the first octave (px), doubled per octave. Bay et al. 2008 §4.2 use 2."""
+    k_surf_duplicate_radius: float = 1.0
+    """Octaves overlap in filter size, so one blob can be found twice: a keypoint within this many
+    scales s of a stronger one of similar scale (ratio < surf_duplicate_scale_ratio) is dropped.
+    Without it, NNDR rejects both copies (measured in docs/sfm.md)."""
+    surf_duplicate_scale_ratio: float = 1.5
+    """Scale ratio under which two nearby keypoints count as one blob (adjacent filter sizes of
+    octave 1 differ by 1.44 at most)."""
     surf_max_keypoints: int = 4000
     """Strongest keypoints kept per image (0 = all). Bounds the descriptor and matching time."""
     surf_upright: bool = False
@@ -106,6 +113,8 @@ class SfmConfig:
         _positive(self, "surf_blob_threshold")
         _at_least(self, "surf_initial_step_px", 1)
         _at_least(self, "surf_max_keypoints", 0)
+        _at_least(self, "k_surf_duplicate_radius", 0.0)
+        _at_least(self, "surf_duplicate_scale_ratio", 1.0)
         if not 0.0 < self.surf_nndr <= 1.0:
             raise ConfigError(f"surf_nndr {self.surf_nndr} must be in (0, 1]")
         _positive(self, "pixel_sigma_px")

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+from scipy.spatial import cKDTree
 
 from atr.errors import InputError
 from atr.sfm import _surf_kernels as kernels
@@ -119,7 +120,32 @@ class Surf:
             return np.zeros((0, 5), np.float64)
         points = np.concatenate(found)
         points[:, 2] *= _SCALE_PER_FILTER_SIZE
-        order = np.argsort(-points[:, 3], kind="stable")
+        points = points[np.argsort(-points[:, 3], kind="stable")]
+        points = self._drop_duplicates(points)
         if cfg.surf_max_keypoints > 0:
-            order = order[: cfg.surf_max_keypoints]
-        return points[order]
+            points = points[: cfg.surf_max_keypoints]
+        return points
+
+    def _drop_duplicates(self, points: np.ndarray) -> np.ndarray:
+        """Keep the strongest of each group of same-blob detections (points sorted strongest first)."""
+        cfg = self.config
+        if cfg.k_surf_duplicate_radius <= 0.0 or points.shape[0] < 2:
+            return points
+        radius = cfg.k_surf_duplicate_radius * float(points[:, 2].max())
+        pairs = cKDTree(points[:, :2]).query_pairs(radius, output_type="ndarray")
+        if pairs.shape[0] == 0:
+            return points
+        i, j = np.sort(pairs, axis=1).T  # i < j: i is the stronger one
+        dist = np.linalg.norm(points[i, :2] - points[j, :2], axis=1)
+        ratio = points[j, 2] / points[i, 2]
+        same = (
+            (dist <= cfg.k_surf_duplicate_radius * np.minimum(points[i, 2], points[j, 2]))
+            & (ratio < cfg.surf_duplicate_scale_ratio)
+            & (ratio > 1.0 / cfg.surf_duplicate_scale_ratio)
+        )
+        keep = np.ones(points.shape[0], bool)
+        # Visit pairs by the stronger index, so a dropped point never drops another one.
+        for a, b in sorted(zip(i[same].tolist(), j[same].tolist())):
+            if keep[a]:
+                keep[b] = False
+        return points[keep]

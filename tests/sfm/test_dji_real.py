@@ -3,13 +3,16 @@ attitude must triangulate the ground about 40 m below the camera."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
-from sfm_scenes import SHARED
 
 from atr.io.dji import T_world_cam_from_meta, intrinsics_from_focal, read_dji_metadata
 from atr.sfm import SfmConfig, reconstruct
+
+SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"
 
 IMAGES = SHARED / "data" / "brighton_beach_dji" / "images"
 # FC300S: 1/2.3" sensor, 6.17 x 4.55 mm; the 16:9 photos span its full width.

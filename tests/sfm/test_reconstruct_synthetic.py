@@ -4,19 +4,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sfm_scenes import R_WORLD_NADIR, PlaneScene, pose, rot_x, rot_z
 
 from atr.errors import InputError
 from atr.sfm import SfmConfig, gftt_klt_correspondences, reconstruct, surf_correspondences
 
 
-def oblique_pair(baseline_m: float = 4.0) -> tuple[np.ndarray, np.ndarray]:
-    T_a = pose(R_WORLD_NADIR @ rot_x(0.25), np.array([0.0, 0.0, 50.0]))
-    T_b = pose(rot_z(0.03) @ R_WORLD_NADIR @ rot_x(0.22), np.array([baseline_m, 0.5, 50.3]))
+@pytest.fixture
+def pair(geo) -> tuple[np.ndarray, np.ndarray]:
+    """Two oblique views 50 m above the plane, 4 m apart, slightly rotated."""
+    T_a = geo.pose(geo.R_WORLD_NADIR @ geo.rot_x(0.25), np.array([0.0, 0.0, 50.0]))
+    T_b = geo.pose(geo.rot_z(0.03) @ geo.R_WORLD_NADIR @ geo.rot_x(0.22), np.array([4.0, 0.5, 50.3]))
     return T_a, T_b
 
 
-def true_pixel_in_b(scene: PlaneScene, pixels_a, T_a, T_b) -> np.ndarray:
+def true_pixel_in_b(scene, pixels_a, T_a, T_b) -> np.ndarray:
     """Where a pixel of image a lands in image b, through the plane z = 0."""
     K_inv = np.linalg.inv(scene.K)
     rays = np.c_[pixels_a, np.ones(len(pixels_a))] @ K_inv.T @ T_a[:3, :3].T
@@ -29,8 +30,8 @@ def true_pixel_in_b(scene: PlaneScene, pixels_a, T_a, T_b) -> np.ndarray:
 
 
 @pytest.mark.parametrize("matcher", ["gftt", "surf"])
-def test_correspondences_follow_the_plane_homography(plane_scene: PlaneScene, matcher: str) -> None:
-    T_a, T_b = oblique_pair()
+def test_correspondences_follow_the_plane_homography(pair, plane_scene, matcher: str) -> None:
+    T_a, T_b = pair
     img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
     find = gftt_klt_correspondences if matcher == "gftt" else surf_correspondences
     pa, pb = find(img_a, img_b, SfmConfig(matcher=matcher))
@@ -42,8 +43,8 @@ def test_correspondences_follow_the_plane_homography(plane_scene: PlaneScene, ma
 
 
 @pytest.mark.parametrize("matcher", ["gftt", "surf"])
-def test_reconstructed_points_lie_on_the_plane(plane_scene: PlaneScene, matcher: str) -> None:
-    T_a, T_b = oblique_pair()
+def test_reconstructed_points_lie_on_the_plane(pair, plane_scene, matcher: str) -> None:
+    T_a, T_b = pair
     img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
     cloud = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SfmConfig(matcher=matcher))
     assert cloud.reason == ""
@@ -56,8 +57,8 @@ def test_reconstructed_points_lie_on_the_plane(plane_scene: PlaneScene, matcher:
     assert cloud.stats["keypoints"] >= cloud.stats["tracked"] >= len(cloud)
 
 
-def test_reconstruct_is_deterministic(plane_scene: PlaneScene) -> None:
-    T_a, T_b = oblique_pair()
+def test_reconstruct_is_deterministic(pair, plane_scene) -> None:
+    T_a, T_b = pair
     img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
     for matcher in ("gftt", "surf"):
         one = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SfmConfig(matcher=matcher))
@@ -68,8 +69,8 @@ def test_reconstruct_is_deterministic(plane_scene: PlaneScene) -> None:
 
 @pytest.mark.parametrize("matcher", ["gftt", "surf"])
 @pytest.mark.parametrize("fill", [0, 128])
-def test_black_or_featureless_image_gives_empty_cloud(plane_scene, matcher: str, fill: int) -> None:
-    T_a, T_b = oblique_pair()
+def test_black_or_featureless_image_gives_empty_cloud(pair, plane_scene, matcher: str, fill: int) -> None:
+    T_a, T_b = pair
     flat = np.full((480, 640), fill, np.uint8)
     cloud = reconstruct(flat, plane_scene.render(T_b), plane_scene.K, T_a, T_b,
                         SfmConfig(matcher=matcher))
@@ -79,15 +80,15 @@ def test_black_or_featureless_image_gives_empty_cloud(plane_scene, matcher: str,
     assert len(cloud) == 0 and cloud.reason
 
 
-def test_zero_baseline_pair_gives_empty_cloud(plane_scene: PlaneScene) -> None:
-    T_a, _ = oblique_pair()
+def test_zero_baseline_pair_gives_empty_cloud(pair, plane_scene) -> None:
+    T_a, _ = pair
     img = plane_scene.render(T_a)
     cloud = reconstruct(img, img, plane_scene.K, T_a, T_a, SfmConfig())
     assert len(cloud) == 0 and "baseline" in cloud.reason
 
 
-def test_bad_images_raise_input_error(plane_scene: PlaneScene) -> None:
-    T_a, T_b = oblique_pair()
+def test_bad_images_raise_input_error(pair, plane_scene) -> None:
+    T_a, T_b = pair
     img = plane_scene.render(T_a)
     with pytest.raises(InputError, match="sizes differ"):
         reconstruct(img, img[:-1], plane_scene.K, T_a, T_b, SfmConfig())

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sfm_scenes import R_WORLD_NADIR, pose, rot_x, rot_z
 
 from atr.errors import ConfigError, InputError
 from atr.sfm import SfmConfig, relative_camera_pose, triangulate_known_pose
@@ -19,9 +18,11 @@ def project(points_world: np.ndarray, T_world_cam: np.ndarray) -> np.ndarray:
     return uv[:, :2] / uv[:, 2:3]
 
 
-def two_cameras(baseline_m: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
-    T_a = pose(R_WORLD_NADIR @ rot_x(0.2), np.array([0.0, 0.0, 50.0]))
-    T_b = pose(rot_z(0.05) @ R_WORLD_NADIR @ rot_x(0.18), np.array([baseline_m, 1.0, 50.5]))
+@pytest.fixture
+def cams(geo) -> tuple[np.ndarray, np.ndarray]:
+    """Two oblique cameras ~50 m above the ground, 6 m apart, slightly rotated."""
+    T_a = geo.pose(geo.R_WORLD_NADIR @ geo.rot_x(0.2), np.array([0.0, 0.0, 50.0]))
+    T_b = geo.pose(geo.rot_z(0.05) @ geo.R_WORLD_NADIR @ geo.rot_x(0.18), np.array([6.0, 1.0, 50.5]))
     return T_a, T_b
 
 
@@ -30,14 +31,14 @@ def ground_points(n: int, seed: int) -> np.ndarray:
     return np.c_[rng.uniform(-15, 15, n), rng.uniform(-25, 5, n), rng.uniform(0.0, 3.0, n)]
 
 
-def test_relative_pose_is_eq1_identity() -> None:
-    T_a, T_b = two_cameras()
+def test_relative_pose_is_eq1_identity(cams) -> None:
+    T_a, T_b = cams
     T_ba = relative_camera_pose(T_a, T_b)
     np.testing.assert_allclose(T_b @ T_ba, T_a, atol=1e-12)
 
 
-def test_exact_projections_triangulate_exactly() -> None:
-    T_a, T_b = two_cameras()
+def test_exact_projections_triangulate_exactly(cams) -> None:
+    T_a, T_b = cams
     X = ground_points(500, seed=1)
     cloud = triangulate_known_pose(project(X, T_a), project(X, T_b), K, T_a, T_b, SfmConfig())
     assert cloud.stats["triangulated"] == 500
@@ -46,10 +47,10 @@ def test_exact_projections_triangulate_exactly() -> None:
     assert cloud.points_world_m.dtype == np.float64 and cloud.sigma_m.dtype == np.float32
 
 
-def test_sigma_matches_monte_carlo_spread() -> None:
+def test_sigma_matches_monte_carlo_spread(cams) -> None:
     """Predicted 1-sigma position error vs the spread under Gaussian pixel noise of pixel_sigma_px."""
     config = SfmConfig(max_relative_sigma=1.0)
-    T_a, T_b = two_cameras()
+    T_a, T_b = cams
     X = ground_points(200, seed=2)
     rng = np.random.default_rng(3)
     errors = []
@@ -68,8 +69,8 @@ def test_sigma_matches_monte_carlo_spread() -> None:
     assert 0.7 < ratio < 1.3, ratio
 
 
-def test_points_behind_a_camera_are_rejected() -> None:
-    T_a, T_b = two_cameras()
+def test_points_behind_a_camera_are_rejected(cams) -> None:
+    T_a, T_b = cams
     X = ground_points(50, seed=4)
     pa, pb = project(X, T_a), project(X, T_b)
     # Swap the order of the cameras' poses: the same pixels now meet behind the cameras or not at all.
@@ -80,8 +81,8 @@ def test_points_behind_a_camera_are_rejected() -> None:
     assert cloud.stats["rejected_behind"] + cloud.stats["rejected_reprojection"] == 50
 
 
-def test_mismatched_correspondences_fail_the_reprojection_gate() -> None:
-    T_a, T_b = two_cameras()
+def test_mismatched_correspondences_fail_the_reprojection_gate(cams) -> None:
+    T_a, T_b = cams
     X = ground_points(100, seed=5)
     pa, pb = project(X, T_a), project(X, T_b)
     pb[:50] += np.array([0.0, 15.0])  # off the epipolar line by ~15 px
@@ -90,8 +91,8 @@ def test_mismatched_correspondences_fail_the_reprojection_gate() -> None:
     assert cloud.stats["rejected_reprojection"] >= 45
 
 
-def test_low_parallax_points_are_rejected() -> None:
-    T_a, _ = two_cameras()
+def test_low_parallax_points_are_rejected(cams) -> None:
+    T_a, _ = cams
     T_b = T_a.copy()
     T_b[:3, 3] += [0.05, 0.0, 0.0]  # 5 cm baseline at ~50 m: parallax ~0.06 deg
     X = ground_points(100, seed=6)
@@ -101,8 +102,8 @@ def test_low_parallax_points_are_rejected() -> None:
     assert "gates" in cloud.reason
 
 
-def test_zero_baseline_gives_empty_cloud_with_reason() -> None:
-    T_a, _ = two_cameras()
+def test_zero_baseline_gives_empty_cloud_with_reason(cams) -> None:
+    T_a, _ = cams
     X = ground_points(20, seed=7)
     p = project(X, T_a)
     cloud = triangulate_known_pose(p, p, K, T_a, T_a.copy(), SfmConfig())
@@ -110,8 +111,8 @@ def test_zero_baseline_gives_empty_cloud_with_reason() -> None:
     assert cloud.points_world_m.shape == (0, 3)
 
 
-def test_too_few_correspondences_give_empty_cloud() -> None:
-    T_a, T_b = two_cameras()
+def test_too_few_correspondences_give_empty_cloud(cams) -> None:
+    T_a, T_b = cams
     cloud = triangulate_known_pose(np.zeros((0, 2)), np.zeros((0, 2)), K, T_a, T_b, SfmConfig())
     assert len(cloud) == 0 and "correspondences" in cloud.reason
 
@@ -124,16 +125,16 @@ def test_too_few_correspondences_give_empty_cloud() -> None:
         (lambda T: T.__setitem__((0, 0), 2.0), "rotation"),
     ],
 )
-def test_bad_pose_raises_input_error_naming_it(mutate, message: str) -> None:
-    T_a, T_b = two_cameras()
+def test_bad_pose_raises_input_error_naming_it(cams, mutate, message: str) -> None:
+    T_a, T_b = cams
     mutate(T_b)
     p = np.zeros((10, 2))
     with pytest.raises(InputError, match=f"T_world_cam_b.*{message}|{message}"):
         triangulate_known_pose(p, p, K, T_a, T_b, SfmConfig())
 
 
-def test_bad_intrinsics_and_pixels_raise() -> None:
-    T_a, T_b = two_cameras()
+def test_bad_intrinsics_and_pixels_raise(cams) -> None:
+    T_a, T_b = cams
     p = np.zeros((10, 2))
     with pytest.raises(InputError, match="focal"):
         triangulate_known_pose(p, p, np.diag([0.0, 800.0, 1.0]), T_a, T_b, SfmConfig())
