@@ -33,7 +33,11 @@ def describe(
     keypoints: np.ndarray,
     radius: float,
 ) -> np.ndarray:
-    """Describe ``keypoints`` on the surface ``points``; (K, L) float32, NaN rows where not describable."""
+    """Describe ``points[keypoints]`` (int indices) on the surface ``points``.
+
+    Returns (K, L) float32, NaN rows where not describable.
+    """
+    keypoints = np.asarray(keypoints, np.int64)
     if _HAVE_FEATURES3D:
         return np.asarray(
             _features3d.describe(name, points, normals, keypoints, radius), dtype=np.float32
@@ -48,9 +52,9 @@ def describe(
         cloud, o3d.geometry.KDTreeSearchParamRadius(float(radius))
     )
     data = np.asarray(feat.data, dtype=np.float32).T
-    _, idx = cKDTree(points).query(keypoints)
-    out = data[idx]
-    counts = np.array([len(n) for n in cKDTree(points).query_ball_point(keypoints, radius)])
+    out = data[keypoints]
+    tree = cKDTree(points)
+    counts = np.array([len(n) for n in tree.query_ball_point(points[keypoints], radius)])
     out[counts < 2] = np.nan
     return out
 

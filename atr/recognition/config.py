@@ -52,6 +52,11 @@ class RecognitionConfig:
         min_overlap: a hypothesis is accepted when at least this fraction of the model's vertices overlap the
             scene after ICP (§II-B-2 "overlapping vertices that exceed a threshold").
         min_overlap_vertices: and at least this many model vertices overlap (rejects tiny accidental fits).
+        max_clutter: and at most this fraction of the scene vertices inside the model's box is left unexplained
+            by the model (rejects box-like models laid on buildings, and small confusers laid on a bigger
+            vehicle). A light form of PCL's global hypothesis verification clutter term.
+        k_ground_slab: the bottom of the model's box, this / resolution high, is ignored by the clutter measure
+            (the ground under and around the target is not part of the model).
         k_nms: hypotheses whose target centres are closer than this / resolution are one location; only the
             best-scoring target is reported there (recognition between the T-72 and its confusers).
         max_scene_points: scenes larger than this are refused (InputError) before any work.
@@ -85,6 +90,8 @@ class RecognitionConfig:
     k_overlap: float = 1.0
     min_overlap: float = 0.5
     min_overlap_vertices: int = 20
+    max_clutter: float = 0.3
+    k_ground_slab: float = 2.0
     k_nms: float = 10.0
     max_scene_points: int = 5_000_000
     max_scene_keypoints: int = 20_000
@@ -110,6 +117,8 @@ class RecognitionConfig:
             raise ConfigError(f"knndr_k = {self.knndr_k} must be >= 2 (a ratio needs two distances)")
         if not 0 < self.knndr_ratio <= 1:
             raise ConfigError(f"knndr_ratio = {self.knndr_ratio} must be in (0, 1]")
+        if not 0 < self.max_clutter <= 1:
+            raise ConfigError(f"max_clutter = {self.max_clutter} must be in (0, 1]")
         if not 0 < self.min_overlap <= 1:
             raise ConfigError(f"min_overlap = {self.min_overlap} must be in (0, 1]")
         if self.min_group_size < 3:
@@ -146,6 +155,11 @@ class RecognitionConfig:
     def overlap_m(self) -> float:
         """Model-scene overlap distance, metres."""
         return self.k_overlap * self.resolution_m
+
+    @property
+    def ground_slab_m(self) -> float:
+        """Height of the ground slab ignored by the clutter measure, metres."""
+        return self.k_ground_slab * self.resolution_m
 
     @property
     def nms_m(self) -> float:

@@ -51,7 +51,7 @@ class Detection:
         target: template target name.
         descriptor: descriptor that found it.
         T_world_target: (4, 4) float64, maps target-frame (template) coordinates into the scene's world frame.
-        score: overlap x overlapping model vertices after ICP (higher is better; compares targets).
+        score: overlapping model vertices x (1 - clutter) after ICP (higher is better; compares targets).
         overlap: fraction of the template's vertices with a scene vertex within the overlap distance.
         inliers: RANSAC inlier correspondences of the winning hypothesis.
     """
@@ -199,12 +199,13 @@ def recognize(
     scene_desc: dict[tuple[str, float], np.ndarray] = {}
     candidates: list[tuple[Detection, np.ndarray, float]] = []
     per_target: list[dict[str, Any]] = []
+    hyp_log: list[tuple[str, float, int, float]] = []
     for tpl in templates:
         key = (tpl.descriptor, float(tpl.radius_m))
         t = time.perf_counter()
         if key not in scene_desc:
             scene_desc[key] = _backend.describe(
-                tpl.descriptor, surface, normals, keypoints, tpl.radius_m
+                tpl.descriptor, surface, normals, kp_idx, tpl.radius_m
             )
         t = clock.add("describe", t)
         corr = match_knndr(
@@ -230,6 +231,7 @@ def recognize(
         t = clock.add("ransac", t)
         model_pts = np.asarray(tpl.points_m, np.float64)
         centre_m = model_pts.mean(axis=0)
+        model_tree = cKDTree(model_pts)
         accepted = 0
         for h in hyps:
             v = verify_with_icp(
@@ -239,16 +241,23 @@ def recognize(
                 config.icp_gate_m,
                 config.overlap_m,
                 config.icp_iterations,
+                ground_slab_m=config.ground_slab_m,
                 scene_tree=scene_tree,
                 scene_cloud=scene_cloud,
+                model_tree=model_tree,
             )
-            if v.overlap >= config.min_overlap and v.overlap_vertices >= config.min_overlap_vertices:
+            hyp_log.append((tpl.target, round(v.overlap, 3), v.overlap_vertices, round(v.clutter, 3)))
+            if (
+                v.overlap >= config.min_overlap
+                and v.overlap_vertices >= config.min_overlap_vertices
+                and v.clutter <= config.max_clutter
+            ):
                 accepted += 1
                 det = Detection(
                     target=tpl.target,
                     descriptor=tpl.descriptor,
                     T_world_target=v.T_scene_model,
-                    score=float(v.overlap * v.overlap_vertices),
+                    score=float(v.overlap_vertices * (1.0 - v.clutter)),
                     overlap=float(v.overlap),
                     inliers=int(h.inliers),
                 )
@@ -266,6 +275,7 @@ def recognize(
             }
         )
     stats["templates"] = per_target
+    stats["verified"] = hyp_log
     detections = suppress_non_maxima(candidates, config.nms_m)
     stats["detections"] = len(detections)
     return RecognitionResult(detections, clock.result(), stats)

@@ -317,12 +317,15 @@ class Verification:
         T_scene_model: (4, 4) float64 after ICP refinement.
         overlap: fraction of model vertices with a scene vertex within the overlap distance.
         overlap_vertices: how many model vertices overlap.
+        clutter: fraction of the scene vertices inside the model's box (above its ground slab) that no model
+            vertex explains; 0 when the box holds no scene vertex.
         rmse_m: RMS distance of the overlapping vertices, metres.
     """
 
     T_scene_model: np.ndarray
     overlap: float
     overlap_vertices: int
+    clutter: float
     rmse_m: float
 
 
@@ -333,25 +336,36 @@ def verify_with_icp(
     icp_gate_m: float,
     overlap_m: float,
     icp_iterations: int,
+    ground_slab_m: float = 0.0,
     scene_tree: cKDTree | None = None,
     scene_cloud: o3d.geometry.PointCloud | None = None,
+    model_tree: cKDTree | None = None,
 ) -> Verification:
-    """Apply a hypothesis to the model, refine it with ICP against the scene, measure the overlap (§II-B-2).
+    """Apply a hypothesis to the model, refine it with ICP against the scene, measure the fit (§II-B-2).
+
+    Two measures: the model side (how many model vertices have a scene vertex within ``overlap_m``, the
+    paper's overlapping vertices) and the scene side (how much of what the scene holds inside the model's
+    bounding box is *not* explained by the model: a box-shaped model laid on a building fits the wall but
+    leaves the rest of the building unexplained). The bottom ``ground_slab_m`` of the box is ignored on the
+    scene side, because the ground the target stands on is never part of the model.
 
     Args:
-        model_points: (N, 3) model vertices P_m, metres.
+        model_points: (N, 3) model vertices P_m in the target frame, metres.
         scene_points: (S, 3) scene vertices, metres.
         T_scene_model: (4, 4) initial hypothesis.
         icp_gate_m: ICP maximum correspondence distance, metres.
         overlap_m: overlap distance, metres.
         icp_iterations: ICP iteration cap.
+        ground_slab_m: height above the model's lowest point ignored by the clutter measure, metres.
         scene_tree: optional prebuilt kd-tree of ``scene_points`` (reused across hypotheses).
         scene_cloud: optional prebuilt Open3D cloud of ``scene_points``.
+        model_tree: optional prebuilt kd-tree of ``model_points``.
 
     Returns:
-        The refined pose and its overlap with the scene.
+        The refined pose and its fit with the scene.
     """
-    src = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(model_points, np.float64)))
+    model_points = np.asarray(model_points, np.float64)
+    src = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(model_points))
     if scene_cloud is None:
         scene_cloud = o3d.geometry.PointCloud(
             o3d.utility.Vector3dVector(np.asarray(scene_points, np.float64))
@@ -367,9 +381,25 @@ def verify_with_icp(
     T = np.asarray(result.transformation, np.float64).copy()
     if scene_tree is None:
         scene_tree = cKDTree(scene_points)
-    moved = model_points @ T[:3, :3].T + T[:3, 3]
+    if model_tree is None:
+        model_tree = cKDTree(model_points)
+    R, t = T[:3, :3], T[:3, 3]
+    moved = model_points @ R.T + t
     d, _ = scene_tree.query(moved, distance_upper_bound=overlap_m)
     hit = np.isfinite(d)
     n_hit = int(hit.sum())
     rmse = float(np.sqrt(np.mean(d[hit] ** 2))) if n_hit else float("inf")
-    return Verification(T, n_hit / max(len(model_points), 1), n_hit, rmse)
+    # Scene side: scene vertices inside the model's box, in the model frame.
+    lo, hi = model_points.min(0), model_points.max(0)
+    centre = 0.5 * (lo + hi)
+    near = scene_tree.query_ball_point(R @ centre + t, float(np.linalg.norm(hi - lo)) / 2 + overlap_m)
+    clutter = 0.0
+    if near:
+        local = (np.asarray(scene_points)[np.sort(near)] - t) @ R  # R^T (p - t)
+        box_lo = lo.copy()
+        box_lo[2] += ground_slab_m
+        inside = np.all((local >= box_lo) & (local <= hi), axis=1)
+        if inside.any():
+            dm, _ = model_tree.query(local[inside], distance_upper_bound=overlap_m)
+            clutter = float(np.mean(~np.isfinite(dm)))
+    return Verification(T, n_hit / max(len(model_points), 1), n_hit, clutter, rmse)

@@ -206,7 +206,7 @@ def template_from_points(
         ref = np.asarray(orientation_normals, np.float64)[finite][sub]
         normals[np.einsum("ij,ij->i", normals, ref) < 0] *= -1.0
     radius = config.support_radius_m
-    desc = _backend.describe(descriptor, p_m, normals, p_m, radius)
+    desc = _backend.describe(descriptor, p_m, normals, np.arange(len(p_m)), radius)
     ok = np.isfinite(desc).all(axis=1)
     info = {
         "version": TEMPLATE_VERSION,
