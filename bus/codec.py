@@ -17,7 +17,8 @@ from atr.errors import SchemaError
 from bus import schemas
 
 NDARRAY_EXT = 1
-MAX_MESSAGE_BYTES = 64 * 1024 * 1024  # larger payloads are refused: a 1280x960 RGB frame is 3.7 MB
+MAX_MESSAGE_BYTES = 32 * 1024 * 1024  # larger payloads are refused: a 1280x960 RGB frame is 3.7 MB,
+# a 262k-point LIDAR scan 3.1 MB
 
 
 def _pack_array(array: np.ndarray) -> msgpack.ExtType:

@@ -262,7 +262,9 @@ class Node:
             payload = codec.encode(type_name, message)
             self._seq_by_key[key] = seq + 1
             attachment = codec.encode_attachment(message["seq"], message["stamp_ns"], self.source_id)
-            self.session.put(key, payload, attachment=attachment)
+            # BLOCK: a slow link delays the publisher instead of silently dropping data (§5).
+            self.session.put(key, payload, attachment=attachment,
+                             congestion_control=zenoh.CongestionControl.BLOCK)
             self.counters.published += 1
         return message
 

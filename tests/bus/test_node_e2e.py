@@ -1,0 +1,147 @@
+"""The service runtime over a real Zenoh bus: other processes, real sessions on loopback, multicast off."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import zenoh
+
+from bus import codec
+from bus.node import Node
+from bus.session import open_session
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "schemas"))
+from conftest import REPO, bus_env, free_port, peer_config, stop_process, wait_for_port  # noqa: E402
+from test_codec import assert_same, example  # noqa: E402
+
+from _publish_examples import KEYS  # noqa: E402
+
+pytestmark = pytest.mark.e2e
+
+
+def test_every_message_type_round_trips_between_processes(hub):
+    with Node("receiver", "uav9", list(KEYS.values()), zenoh_config=peer_config(hub)) as node:
+        child = subprocess.Popen([sys.executable, str(HERE / "_publish_examples.py"), hub, "1.5"],
+                                 env=bus_env(hub), cwd=REPO)
+        got = {}
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and len(got) < len(KEYS):
+            for message in node.events(timeout_s=0.5):
+                if message.source and message.source.startswith("examples@"):
+                    got[message.type_name] = message.data
+        child.wait(10)
+    assert set(got) == set(KEYS)
+    for name, data in got.items():
+        assert_same(example(name), data)
+
+
+def _service(name: str, hub: str, *args: str) -> subprocess.Popen[bytes]:
+    return subprocess.Popen([sys.executable, "-m", "cli.main", "service", name, *args], env=bus_env(hub),
+                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+
+
+def _wait_running(session: zenoh.Session, service: str, timeout_s: float = 120) -> dict:
+    found: list[dict] = []
+    sub = session.declare_subscriber(
+        f"atr/uav1/{service}/status", lambda s: found.append(codec.unpack(s.payload.to_bytes()))
+    )
+    deadline = time.monotonic() + timeout_s
+    try:
+        while time.monotonic() < deadline:
+            running = [s for s in found if s["state"] == "running"]
+            if running:
+                return running[-1]
+            time.sleep(0.1)
+    finally:
+        sub.undeclare()
+    raise TimeoutError(f"{service} not running after {timeout_s} s")
+
+
+def _good_imu(seq: int) -> dict:
+    t = 1_000_000_000 + np.arange(1, 21, dtype=np.int64) * 5_000_000
+    return {"stamp_ns": int(t[-1]), "seq": seq, "version": 1, "frame_seq": seq, "t_ns": t,
+            "gyro_radps": np.zeros((20, 3)), "accel_mps2": np.tile([0.0, 0.0, 9.80665], (20, 1)),
+            "init": {"T_world_imu": np.eye(4), "v_world_mps": np.zeros(3)}}
+
+
+def test_bad_inputs_are_reported_and_the_next_good_one_is_processed(hub):
+    service = _service("pose_integrator", hub)
+    session = open_session(peer_config(hub))
+    try:
+        _wait_running(session, "pose_integrator")
+        errors, poses = [], []
+        session.declare_subscriber("atr/uav1/pose_integrator/errors",
+                                   lambda s: errors.append(codec.unpack(s.payload.to_bytes())))
+        session.declare_subscriber("atr/uav1/pose/camera",
+                                   lambda s: poses.append(codec.unpack(s.payload.to_bytes())))
+        time.sleep(0.5)
+        good = _good_imu(0)
+        bad = [
+            b"this is not msgpack \xc1",
+            codec.pack({"stamp_ns": 1, "seq": 0}),  # breaks the schema: required fields missing
+            codec.pack(good | {"gyro_radps": np.zeros((20, 3), np.float32)}),  # wrong dtype
+            codec.pack(good | {"accel_mps2": np.full((20, 2), 1.0)}),  # wrong shape
+            codec.pack(good | {"accel_mps2": np.full((20, 3), np.nan)}),  # NaN-filled
+            b"\x00" * (codec.MAX_MESSAGE_BYTES + 16),  # oversized
+        ]
+        block = zenoh.CongestionControl.BLOCK
+        for payload in bad:
+            session.put("atr/uav1/imu", payload, congestion_control=block)
+        session.put("atr/uav1/imu", codec.pack(good), congestion_control=block)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and not (len(errors) >= len(bad) and poses):
+            time.sleep(0.1)
+        assert len(errors) == len(bad), [e["reason"] for e in errors]
+        assert all(e["service"] == "pose_integrator" and e["key"] == "atr/uav1/imu" for e in errors)
+        reasons = " | ".join(e["reason"] for e in errors)
+        for expected in ("not valid msgpack", "dtype", "shape", "NaN", "exceeds"):
+            assert expected in reasons
+        assert len(poses) == 1 and poses[0]["frame_seq"] == 0
+        assert service.poll() is None  # still alive
+    finally:
+        session.close()
+        stop_process(service)
+
+
+def test_killed_service_is_restarted_by_atr_up(tmp_path):
+    port = free_port()
+    layout = tmp_path / "mini.yml"
+    layout.write_text(
+        "name: mini\nvariables: {uav: uav1, hub: 'tcp/127.0.0.1:%d'}\nzenoh: compose/zenoh/local.json5\n"
+        "processes:\n  - {name: router, service: router, role: hub, args: [--listen, '${hub}']}\n"
+        "  - {name: pose_integrator, service: pose_integrator}\n" % port
+    )
+    env = bus_env(f"tcp/127.0.0.1:{port}")
+    up = subprocess.Popen([sys.executable, "-m", "cli.main", "up", str(layout)], env=env, cwd=REPO,
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    try:
+        wait_for_port(port, 30)
+        session = open_session(peer_config(f"tcp/127.0.0.1:{port}"))
+        try:
+            first = _wait_running(session, "pose_integrator")
+            subprocess.run(["kill", "-9", str(first["pid"])], check=True)
+            deadline = time.monotonic() + 60
+            second = first
+            while second["pid"] == first["pid"] and time.monotonic() < deadline:
+                second = _wait_running(session, "pose_integrator", 60)
+            assert second["pid"] != first["pid"]
+            poses = []
+            session.declare_subscriber("atr/uav1/pose/camera", lambda s: poses.append(1))
+            time.sleep(0.5)
+            session.put("atr/uav1/imu", codec.pack(_good_imu(0)))
+            deadline = time.monotonic() + 20
+            while not poses and time.monotonic() < deadline:
+                time.sleep(0.1)
+            assert poses, "the restarted service did not answer"
+        finally:
+            session.close()
+    finally:
+        assert stop_process(up, 30) == 0
