@@ -44,7 +44,7 @@ def _box_clamped(ii, r0, c0, nr, nc):
     return ii[r1, c1] - ii[r0, c1] - ii[r1, c0] + ii[r0, c0]
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True)
 def hessian_layers(ii, sizes, step):
     """det(H) and sign of trace(H) on a grid of every `step` pixels, one layer per filter size.
 
@@ -62,7 +62,7 @@ def hessian_layers(ii, sizes, step):
         lobe = size // 3
         half = (size - 1) // 2
         inv_area = 1.0 / (size * size)
-        for gr in numba.prange(gh):
+        for gr in range(gh):
             r = gr * step
             if r - half < 0 or r + half >= h:
                 continue
@@ -220,7 +220,7 @@ def _orientation(ii, x, y, s):
     return best_angle
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True)
 def describe(ii, keypoints, upright):
     """Orientation (unless upright) and the 64-D descriptor of each keypoint (x, y, s, _).
 
@@ -230,7 +230,7 @@ def describe(ii, keypoints, upright):
     angles = np.zeros(n_kp)
     desc = np.zeros((n_kp, 64), np.float32)
     inv_two_sigma2 = 1.0 / (2.0 * _DESC_SIGMA_S * _DESC_SIGMA_S)
-    for k in numba.prange(n_kp):
+    for k in range(n_kp):
         x = keypoints[k, 0]
         y = keypoints[k, 1]
         s = keypoints[k, 2]
