@@ -1,0 +1,200 @@
+"""Unit tests of the matcher's steps: each pins a property that fails if the step breaks."""
+
+import math
+
+import numpy as np
+import pytest
+
+from atr.errors import ConfigError, InputError
+from atr.recognition import (
+    Correspondences,
+    RecognitionConfig,
+    Template,
+    filter_smooth_surfaces,
+    group_geometrically_consistent,
+    match_knndr,
+    ransac_per_group,
+    rigid_transform,
+    uniform_subsample,
+)
+from atr.recognition._backend import estimate_normals
+
+
+def _random_pose(rng):
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    w, x, y, z = q
+    R = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = rng.uniform(-5, 5, 3)
+    return T
+
+
+def test_uniform_subsample_keeps_point_nearest_each_voxel_centre():
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(-1, 1, (3000, 3))
+    leaf = 0.25
+    idx = uniform_subsample(pts, leaf)
+    cells = np.floor(pts / leaf).astype(int)
+    # one kept point per occupied voxel
+    assert len(idx) == len({tuple(c) for c in cells})
+    assert len({tuple(c) for c in cells[idx]}) == len(idx)
+    # brute force: the kept point is the one closest to its voxel centre
+    d = np.linalg.norm(pts - (cells + 0.5) * leaf, axis=1)
+    for i in idx[:200]:
+        same = np.all(cells == cells[i], axis=1)
+        assert d[i] == d[same].min()
+
+
+def test_uniform_subsample_rejects_bad_leaf_and_handles_empty():
+    with pytest.raises(InputError):
+        uniform_subsample(np.zeros((4, 3)), 0.0)
+    assert len(uniform_subsample(np.zeros((0, 3)), 0.3)) == 0
+
+
+def test_smooth_surface_filter_drops_plane_keeps_edges():
+    g = np.arange(0, 6, 0.3)
+    xx, yy = np.meshgrid(g, g)
+    plane = np.c_[xx.ravel(), yy.ravel(), np.zeros(xx.size)]
+    # a box sitting on the plane: its edges and corners are not smooth
+    box = []
+    for x in np.arange(2.1, 3.91, 0.3):
+        for z in np.arange(0.3, 1.81, 0.3):
+            box += [(x, 2.1, z), (x, 3.9, z), (2.1, x, z), (3.9, x, z)]
+    pts = np.unique(np.round(np.r_[plane, np.array(box)], 6), axis=0)
+    normals = estimate_normals(pts, 6, None)
+    keep = filter_smooth_surfaces(pts, normals, 6, math.radians(10))
+    far_plane = (pts[:, 2] == 0) & (np.min(np.abs(pts[:, :2] - 3.0), axis=1) > 1.5)
+    assert not keep[far_plane].any()
+    corner = np.all(np.isclose(pts, [2.1, 2.1, 1.8]), axis=1)
+    assert keep[corner].all()
+
+
+def test_knndr_matches_identical_descriptors_and_applies_ratio():
+    rng = np.random.default_rng(2)
+    model = rng.normal(size=(50, 16))
+    scene = model[[3, 7, 11]] + 1e-3 * rng.normal(size=(3, 16))
+    corr = match_knndr(scene, model, k=10, ratio=0.8)
+    best = {}
+    for s, m in zip(corr.scene, corr.model, strict=True):  # sorted by distance: first is nearest
+        best.setdefault(int(s), int(m))
+    assert best == {0: 3, 1: 7, 2: 11}
+    assert np.all(np.diff(corr.distance) >= 0)
+    # a scene descriptor equidistant from everything has no distinctive match
+    flat = np.zeros((1, 16))
+    model_ring = np.eye(16)[:12]
+    assert len(match_knndr(flat, model_ring, k=10, ratio=0.8)) == 0
+
+
+def test_knndr_ignores_nan_rows_and_checks_shapes():
+    model = np.eye(4)
+    scene = np.array([[np.nan] * 4, [1.0, 0, 0, 0]])
+    corr = match_knndr(scene, model, k=3, ratio=0.9)
+    assert set(corr.scene.tolist()) == {1}
+    with pytest.raises(InputError):
+        match_knndr(np.zeros((2, 3)), np.zeros((2, 4)), k=2, ratio=0.8)
+
+
+def _rigid_case(seed, n_true=40, n_out=60):
+    rng = np.random.default_rng(seed)
+    model = rng.uniform(-3, 3, (100, 3))
+    T = _random_pose(rng)
+    scene = model @ T[:3, :3].T + T[:3, 3]
+    true_m = np.arange(n_true)
+    out_m = rng.integers(0, 100, n_out)
+    out_s = rng.integers(0, 100, n_out)
+    corr = Correspondences(
+        scene=np.r_[true_m, out_s].astype(np.int64),
+        model=np.r_[true_m, out_m].astype(np.int64),
+        distance=np.r_[np.linspace(0, 1, n_true), np.linspace(0.5, 2, n_out)],
+    )
+    return model, scene, T, corr, n_true
+
+
+def test_geometric_consistency_groups_the_true_correspondences():
+    model, scene, _, corr, n_true = _rigid_case(3)
+    groups = group_geometrically_consistent(scene, model, corr, 0.05, 5)
+    assert groups
+    g0 = set(groups[0].tolist())
+    assert set(range(n_true)) <= g0
+    assert len(g0) < n_true + 5  # outliers are rarely distance-consistent
+
+
+def test_ransac_recovers_pose_and_is_deterministic():
+    model, scene, T, corr, _ = _rigid_case(4)
+    group = np.arange(len(corr))
+    h1 = ransac_per_group(scene, model, corr, group, 1000, 0.05, np.random.default_rng(9))
+    h2 = ransac_per_group(scene, model, corr, group, 1000, 0.05, np.random.default_rng(9))
+    assert h1 is not None and h2 is not None
+    np.testing.assert_allclose(h1.T_scene_model, T, atol=1e-9)
+    assert np.array_equal(h1.T_scene_model, h2.T_scene_model)
+    assert h1.inliers >= 40
+
+
+def test_rigid_transform_identities():
+    rng = np.random.default_rng(5)
+    T = _random_pose(rng)
+    a = rng.normal(size=(20, 3))
+    b = a @ T[:3, :3].T + T[:3, 3]
+    est = rigid_transform(a, b)
+    np.testing.assert_allclose(est @ np.linalg.inv(est), np.eye(4), atol=1e-12)
+    np.testing.assert_allclose(est, T, atol=1e-9)
+    assert np.isclose(np.linalg.det(est[:3, :3]), 1.0)
+
+
+def test_config_validates():
+    with pytest.raises(ConfigError):
+        RecognitionConfig(resolution_m=0.0)
+    with pytest.raises(ConfigError):
+        RecognitionConfig(descriptor="sift")
+    with pytest.raises(ConfigError):
+        RecognitionConfig(knndr_ratio=1.5)
+    cfg = RecognitionConfig()
+    assert cfg.resolution_m == 0.3 and cfg.normal_k == 6 and cfg.knndr_k == 10
+    assert cfg.ransac_iterations == 1000
+    assert math.isclose(cfg.support_radius_m, cfg.k_support_radius * 0.3)
+
+
+def test_template_round_trips_through_dict_and_msgpack():
+    msgpack = pytest.importorskip("msgpack")
+    rng = np.random.default_rng(6)
+    t = Template(
+        target="t72",
+        descriptor="fpfh",
+        points_m=rng.normal(size=(30, 3)).astype(np.float32),
+        normals=rng.normal(size=(30, 3)).astype(np.float32),
+        keypoints_m=rng.normal(size=(20, 3)).astype(np.float32),
+        descriptors=rng.normal(size=(20, 33)).astype(np.float32),
+        radius_m=1.5,
+        params={"resolution_m": 0.3, "template_azimuths_deg": [0.0, 90.0]},
+    )
+
+    def enc(o):
+        if isinstance(o, np.ndarray):
+            return msgpack.ExtType(1, msgpack.packb([o.dtype.str, list(o.shape), o.tobytes()]))
+        raise TypeError(type(o))
+
+    def dec(code, data):
+        dt, shape, raw = msgpack.unpackb(data)
+        return np.frombuffer(raw, dtype=dt).reshape(shape)
+
+    back = Template.from_dict(msgpack.unpackb(msgpack.packb(t.to_dict(), default=enc), ext_hook=dec))
+    for f in ("points_m", "normals", "keypoints_m", "descriptors"):
+        assert np.array_equal(getattr(back, f), getattr(t, f))
+    assert (back.target, back.descriptor, back.radius_m, back.params) == (
+        t.target,
+        t.descriptor,
+        t.radius_m,
+        t.params,
+    )
+    bad = t.to_dict()
+    bad["descriptors"] = bad["descriptors"][:5]
+    with pytest.raises(InputError):
+        Template.from_dict(bad)
