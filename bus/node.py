@@ -262,9 +262,11 @@ class Node:
             payload = codec.encode(type_name, message)
             self._seq_by_key[key] = seq + 1
             attachment = codec.encode_attachment(message["seq"], message["stamp_ns"], self.source_id)
-            # BLOCK: a slow link delays the publisher instead of silently dropping data (§5).
-            self.session.put(key, payload, attachment=attachment,
-                             congestion_control=zenoh.CongestionControl.BLOCK)
+            # Data: BLOCK, a slow link delays the publisher instead of silently dropping data (§5).
+            # Status and timing: DROP, a heartbeat must never hold a service (or its shutdown) up.
+            congestion = (zenoh.CongestionControl.BLOCK if keys.is_data_key(key)
+                          else zenoh.CongestionControl.DROP)
+            self.session.put(key, payload, attachment=attachment, congestion_control=congestion)
             self.counters.published += 1
         return message
 
