@@ -28,19 +28,20 @@ import numba
 import numpy as np
 
 from atr.errors import ConfigError, InputError
-from atr.features3d._neighbours import RadiusSearch
 
 # PCL FPFHEstimation default subdivisions of f1, f2, f3 (Rusu et al. 2009: 11 bins each, 33 values).
 FPFH_BINS_PER_FEATURE = 11
 FPFH_LENGTH = 3 * FPFH_BINS_PER_FEATURE
 # PCL scales every SPFH increment and every final FPFH sub-histogram to a sum of 100 (percent).
 _PERCENT = np.float32(100.0)
-# The grid is built a hair wider than the radius; the kernels then apply PCL's exact float32 "d² < r²" test.
-_GRID_MARGIN = 1.0 + 1e-6
+# Most cells the uniform search grid may have (int64 start table of 8 × 2^22 bytes); beyond it cells grow.
+_MAX_GRID_CELLS = 1 << 22
 
 _F0 = np.float32(0.0)
 _F1 = np.float32(1.0)
 # PCL: d_pi_ = 1.0f / (2.0f * float(M_PI)), a float32 that is promoted to double in the bin formula.
+# Cosine gap beyond which acosf cannot round two values to the same float (2 ulp of acos(0) = π/2).
+_ACOS_TIE = np.float32(4.0 * np.spacing(np.float32(math.pi / 2)))
 _D_PI = float(np.float32(1.0) / (np.float32(2.0) * np.float32(math.pi)))
 
 
@@ -97,6 +98,140 @@ def pcl_squared_radius(radius: float) -> np.float32:
     return np.float32(r * r)
 
 
+# ------------------------------------------------------------------------------------------------ search grid
+#
+# A uniform grid with cells >= the radius, points counting-sorted by cell, a dense start table: a query visits
+# 9 runs of consecutive cells (the z runs are contiguous), no hashing, no binary search. It is faster than the
+# package's general RadiusSearch for the many queries of FPFH, and it applies FLANN's exact float32 test
+# (query - point, ((dx² + dy²) + dz²) < float32 r²) inside the loop.
+
+
+class Grid:
+    """Uniform search grid over float32 points (non-finite points are left out).
+
+    Args:
+        pts: (N, 3) float32, metres.
+        radius: largest query radius, metres (> 0).
+    """
+
+    def __init__(self, pts: np.ndarray, radius: float) -> None:
+        finite = np.isfinite(pts).all(axis=1)
+        idx = np.flatnonzero(finite)
+        if idx.size == 0:
+            self.origin = np.zeros(3)
+            self.cell = float(radius)
+            self.dims = np.ones(3, dtype=np.int64)
+            self.order = np.zeros(0, dtype=np.int64)
+            self.starts = np.zeros(2, dtype=np.int64)
+            return
+        p = pts[idx].astype(np.float64)
+        origin = p.min(axis=0)
+        extent = p.max(axis=0) - origin
+        cell = float(radius) * (1.0 + 1e-6)
+        # Coarser cells when a fine grid would be too large (still correct: distances are tested).
+        volume_cells = float(np.prod(extent / cell + 1.0))
+        if volume_cells > _MAX_GRID_CELLS:
+            cell *= (volume_cells / _MAX_GRID_CELLS) ** (1.0 / 3.0) * 1.01
+        dims = (np.floor(extent / cell) + 1).astype(np.int64)
+        order, starts = _counting_sort(p, idx.astype(np.int64), origin, cell, dims)
+        self.origin = origin
+        self.cell = cell
+        self.dims = dims
+        self.order = order
+        self.starts = starts
+
+    def args(self) -> tuple:
+        """The arrays the numba kernels take."""
+        return self.origin, self.cell, self.dims, self.order, self.starts
+
+
+@numba.njit(cache=True)
+def _counting_sort(p, idx, origin, cell, dims):
+    """Point ids sorted by grid cell (stable) and the start of each cell in that order."""
+    n = p.shape[0]
+    n_cells = dims[0] * dims[1] * dims[2]
+    keys = np.empty(n, dtype=np.int64)
+    starts = np.zeros(n_cells + 1, dtype=np.int64)
+    for i in range(n):
+        cx = min(int(math.floor((p[i, 0] - origin[0]) / cell)), dims[0] - 1)
+        cy = min(int(math.floor((p[i, 1] - origin[1]) / cell)), dims[1] - 1)
+        cz = min(int(math.floor((p[i, 2] - origin[2]) / cell)), dims[2] - 1)
+        keys[i] = (cx * dims[1] + cy) * dims[2] + cz
+        starts[keys[i] + 1] += 1
+    for c in range(n_cells):
+        starts[c + 1] += starts[c]
+    fill = starts[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        order[fill[keys[i]]] = idx[i]
+        fill[keys[i]] += 1
+    return order, starts
+
+
+@numba.njit(cache=True)
+def _cell_bounds(origin, cell, dims, qx, qy, qz):
+    """Cell ranges (x0, x1, y0, y1, z0, z1) around q, inclusive; x0 > x1 when q is far outside or not finite."""
+    if not (np.isfinite(qx) and np.isfinite(qy) and np.isfinite(qz)):
+        return 1, 0, 0, -1, 0, -1
+    fx = math.floor((np.float64(qx) - origin[0]) / cell)
+    fy = math.floor((np.float64(qy) - origin[1]) / cell)
+    fz = math.floor((np.float64(qz) - origin[2]) / cell)
+    if fx < -1 or fy < -1 or fz < -1 or fx > dims[0] or fy > dims[1] or fz > dims[2]:
+        return 1, 0, 0, -1, 0, -1
+    cx, cy, cz = int(fx), int(fy), int(fz)
+    return (max(cx - 1, 0), min(cx + 1, dims[0] - 1), max(cy - 1, 0), min(cy + 1, dims[1] - 1),
+            max(cz - 1, 0), min(cz + 1, dims[2] - 1))
+
+
+@numba.njit(cache=True)
+def _visit(origin, cell, dims, order, starts, pts, qx, qy, qz, r2, out, write):
+    """Count (and, if ``write``, store in out) the points with float32 ((qx-px)² + (qy-py)²) + (qz-pz)² < r2."""
+    x0, x1, y0, y1, z0, z1 = _cell_bounds(origin, cell, dims, qx, qy, qz)
+    n = 0
+    for ix in range(x0, x1 + 1):
+        for iy in range(y0, y1 + 1):
+            base = (ix * dims[1] + iy) * dims[2]
+            for t in range(starts[base + z0], starts[base + z1 + 1]):
+                j = order[t]
+                ex = qx - pts[j, 0]
+                ey = qy - pts[j, 1]
+                ez = qz - pts[j, 2]
+                if (ex * ex + ey * ey) + ez * ez < r2:
+                    if write:
+                        out[n] = j
+                    n += 1
+    return n
+
+
+@numba.njit(cache=True, parallel=True)
+def _grid_csr(origin, cell, dims, order, starts, pts, queries, r2):
+    """Neighbour lists (CSR offsets, indices) of each query under PCL's float32 strict radius test."""
+    k_count = queries.shape[0]
+    counts = np.zeros(k_count, dtype=np.int64)
+    empty = np.zeros(0, dtype=np.int64)
+    for k in numba.prange(k_count):
+        counts[k] = _visit(origin, cell, dims, order, starts, pts, queries[k, 0], queries[k, 1], queries[k, 2],
+                           r2, empty, False)
+    offsets = np.zeros(k_count + 1, dtype=np.int64)
+    for k in range(k_count):
+        offsets[k + 1] = offsets[k] + counts[k]
+    nbrs = np.empty(offsets[k_count], dtype=np.int64)
+    for k in numba.prange(k_count):
+        _visit(origin, cell, dims, order, starts, pts, queries[k, 0], queries[k, 1], queries[k, 2], r2,
+               nbrs[offsets[k]:offsets[k + 1]], True)
+    return offsets, nbrs
+
+
+def radius_csr(pts: np.ndarray, queries: np.ndarray, radius: float, grid: Grid | None = None):
+    """Neighbours of float32 ``queries`` in float32 ``pts`` strictly within ``radius`` (FLANN's float32 test).
+
+    Returns:
+        (offsets (K+1,), indices (M,)) int64 CSR arrays; a non-finite query has no neighbour.
+    """
+    g = grid if grid is not None else Grid(pts, radius)
+    return _grid_csr(*g.args(), pts, queries, pcl_squared_radius(radius))
+
+
 # ------------------------------------------------------------------------------------------------ kernels
 
 
@@ -118,7 +253,17 @@ def _pair_features_f32(p1x, p1y, p1z, n1x, n1y, n1z, p2x, p2y, p2z, n2x, n2y, n2
     angle1 = _dot4(n1x, n1y, n1z, dx, dy, dz) / f4
     angle2 = _dot4(n2x, n2y, n2z, dx, dy, dz) / f4
     # The source point is the one whose normal makes the smaller angle with the line (same pair, same frame).
-    if math.acos(abs(angle1)) > math.acos(abs(angle2)):
+    # PCL compares acosf(|angle|); acos is decreasing with slope <= -1, so only cosines closer than 2 ulp of
+    # acos(0) can tie after rounding: evaluate acos for those alone (acos is the costliest step here).
+    a1 = abs(angle1)
+    a2 = abs(angle2)
+    if a2 - a1 > _ACOS_TIE:
+        swap = True
+    elif a1 - a2 > _ACOS_TIE:
+        swap = False
+    else:
+        swap = np.float32(math.acos(a1)) > np.float32(math.acos(a2))
+    if swap:
         ux, uy, uz = n2x, n2y, n2z
         tx, ty, tz = n1x, n1y, n1z
         dx = -dx
@@ -160,43 +305,47 @@ def _bin_cosine(f, nbins):
 
 
 @numba.njit(cache=True, parallel=True)
-def _spfh_rows(pts, nrm, centres, offsets, nbrs, r2, nbins):
-    """SPFH (3 × nbins, float32) of pts[centres[m]] over its neighbour list m (filtered by d² < r2)."""
+def _spfh_rows(origin, cell, dims, order, starts, pts, nrm, centres, r2, nbins):
+    """SPFH (3 × nbins, float32) of each pts[centres[m]], its neighbours found on the fly in the grid."""
     m_count = centres.shape[0]
     out = np.zeros((m_count, 3 * nbins), dtype=np.float32)
     for m in numba.prange(m_count):
         p = centres[m]
         px, py, pz = pts[p, 0], pts[p, 1], pts[p, 2]
-        # Neighbour count |N(p)| under PCL's strict float32 test (the point itself included).
-        n_in = 0
-        for t in range(offsets[m], offsets[m + 1]):
-            q = nbrs[t]
-            ex = pts[q, 0] - px
-            ey = pts[q, 1] - py
-            ez = pts[q, 2] - pz
-            if (ex * ex + ey * ey) + ez * ez < r2:
-                n_in += 1
+        counts = np.zeros(3 * nbins, dtype=np.int64)
+        n_in = 0  # |N(p)|, the point itself included
+        x0, x1, y0, y1, z0, z1 = _cell_bounds(origin, cell, dims, px, py, pz)
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                base = (ix * dims[1] + iy) * dims[2]
+                for t in range(starts[base + z0], starts[base + z1 + 1]):
+                    q = order[t]
+                    ex = px - pts[q, 0]
+                    ey = py - pts[q, 1]
+                    ez = pz - pts[q, 2]
+                    if not ((ex * ex + ey * ey) + ez * ez < r2):
+                        continue
+                    n_in += 1
+                    if q == p:
+                        continue
+                    ok, f1, f2, f3, _f4 = _pair_features_f32(
+                        px, py, pz, nrm[p, 0], nrm[p, 1], nrm[p, 2],
+                        pts[q, 0], pts[q, 1], pts[q, 2], nrm[q, 0], nrm[q, 1], nrm[q, 2],
+                    )
+                    if not ok:
+                        continue
+                    counts[_bin_angle(f1, nbins)] += 1
+                    counts[nbins + _bin_cosine(f2, nbins)] += 1
+                    counts[2 * nbins + _bin_cosine(f3, nbins)] += 1
         if n_in < 2:
             continue
+        # PCL adds the float32 increment once per pair; repeated addition reproduces its rounding.
         incr = _PERCENT / np.float32(n_in - 1)
-        for t in range(offsets[m], offsets[m + 1]):
-            q = nbrs[t]
-            if q == p:
-                continue
-            ex = pts[q, 0] - px
-            ey = pts[q, 1] - py
-            ez = pts[q, 2] - pz
-            if not ((ex * ex + ey * ey) + ez * ez < r2):
-                continue
-            ok, f1, f2, f3, _f4 = _pair_features_f32(
-                px, py, pz, nrm[p, 0], nrm[p, 1], nrm[p, 2],
-                pts[q, 0], pts[q, 1], pts[q, 2], nrm[q, 0], nrm[q, 1], nrm[q, 2],
-            )
-            if not ok:
-                continue
-            out[m, _bin_angle(f1, nbins)] += incr
-            out[m, nbins + _bin_cosine(f2, nbins)] += incr
-            out[m, 2 * nbins + _bin_cosine(f3, nbins)] += incr
+        for b in range(3 * nbins):
+            v = _F0
+            for _ in range(counts[b]):
+                v += incr
+            out[m, b] = v
     return out
 
 
@@ -313,13 +462,11 @@ def spfh(points: np.ndarray, normals: np.ndarray, centres: np.ndarray, radius: f
         (M, 33) float32: f1, f2, f3 histograms, each summing to 100 (0 when the point has no neighbour).
     """
     r = check_radius(radius)
-    pts64 = as_points(points)
-    pts = np.ascontiguousarray(pts64, dtype=np.float32)
+    pts = np.ascontiguousarray(as_points(points), dtype=np.float32)
     nrm = np.ascontiguousarray(as_points(normals, "normals"), dtype=np.float32)
-    centres = np.asarray(centres, dtype=np.int64)
-    grid = RadiusSearch(pts.astype(np.float64), r * _GRID_MARGIN)
-    nb = grid.query(pts.astype(np.float64)[centres], sort=False)
-    return _spfh_rows(pts, nrm, centres, nb.offsets, nb.indices, pcl_squared_radius(r), FPFH_BINS_PER_FEATURE)
+    centres = np.ascontiguousarray(centres, dtype=np.int64)
+    grid = Grid(pts, r)
+    return _spfh_rows(*grid.args(), pts, nrm, centres, pcl_squared_radius(r), FPFH_BINS_PER_FEATURE)
 
 
 def fpfh(points: np.ndarray, normals: np.ndarray, keypoints: np.ndarray, radius: float) -> np.ndarray:
@@ -361,14 +508,13 @@ def fpfh(points: np.ndarray, normals: np.ndarray, keypoints: np.ndarray, radius:
         return np.full((k_count, FPFH_LENGTH), np.nan, dtype=np.float32)
 
     r2 = pcl_squared_radius(r)
-    grid = RadiusSearch(pts.astype(np.float64), r * _GRID_MARGIN)
-    kp_nb = grid.query(kp.astype(np.float64), sort=False)
+    grid = Grid(pts, r)
+    kp_off, kp_nbrs = _grid_csr(*grid.args(), pts, kp, r2)
     # SPFH only for the points some keypoint needs.
     needed_mask = np.zeros(pts.shape[0], dtype=bool)
-    needed_mask[kp_nb.indices] = True
+    needed_mask[kp_nbrs] = True
     needed = np.flatnonzero(needed_mask)
     row_of = np.full(pts.shape[0], -1, dtype=np.int64)
     row_of[needed] = np.arange(needed.shape[0])
-    sp_nb = grid.query(pts[needed].astype(np.float64), sort=False)
-    rows = _spfh_rows(pts, nrm, needed, sp_nb.offsets, sp_nb.indices, r2, FPFH_BINS_PER_FEATURE)
-    return _weight_spfh(kp, pts, kp_nb.offsets, kp_nb.indices, row_of, rows, r2, FPFH_BINS_PER_FEATURE)
+    rows = _spfh_rows(*grid.args(), pts, nrm, needed, r2, FPFH_BINS_PER_FEATURE)
+    return _weight_spfh(kp, pts, kp_off, kp_nbrs, row_of, rows, r2, FPFH_BINS_PER_FEATURE)

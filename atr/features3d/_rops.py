@@ -32,13 +32,12 @@ import numpy as np
 
 from atr.errors import ConfigError, InputError
 from atr.features3d._fpfh import (
-    _GRID_MARGIN,
     as_points,
     check_radius,
     keypoint_coordinates,
     pcl_squared_radius,
+    radius_csr,
 )
-from atr.features3d._neighbours import RadiusSearch
 
 # Guo et al. 2013 / PCL defaults: 5 × 5 distribution matrices, 3 rotations about each LRF axis.
 ROPS_PARTITION_BINS = 5
@@ -455,9 +454,8 @@ def rops(
         inc_off = np.zeros(pts.shape[0] + 1, dtype=np.int64)
         inc_tri = np.zeros(0, dtype=np.int64)
 
-    grid = RadiusSearch(pts.astype(np.float64), r * _GRID_MARGIN)
-    nb = grid.query(kp.astype(np.float64), sort=False)
+    offsets, nbrs = radius_csr(pts, kp, r)
     return _rops_kernel(
-        pts, kp, nb.offsets, nb.indices, pcl_squared_radius(r), np.float32(r), use_mesh, tris, inc_off, inc_tri,
+        pts, kp, offsets, nbrs, pcl_squared_radius(r), np.float32(r), use_mesh, tris, inc_off, inc_tri,
         rops_angles(n_rot), nbins, out_len, ROPS_MIN_POINTS,
     )
