@@ -60,6 +60,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="mesh model only: number of HPR azimuths whose union is the template (default: config)",
     )
+    parser.add_argument(
+        "--max-keypoints",
+        type=int,
+        default=None,
+        help="describe at most this many scene vertices (deterministic thinning; default: config)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -105,6 +111,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{args.model}: the model holds no point")
     resolution = _resolution(args.resolution, model.points, model.is_mesh)
     config = RecognitionConfig(resolution_m=resolution, descriptor=args.descriptor)
+    if args.max_keypoints is not None:
+        config = dataclasses.replace(config, max_scene_keypoints=args.max_keypoints)
     if args.views is not None:
         if args.views < 1:
             raise InputError(f"--views {args.views} must be >= 1")
