@@ -57,7 +57,7 @@ class SimConfig:
     accel_random_walk: float = 3.0e-3  # m/s^3/sqrt(Hz) (EuRoC imu0 accelerometer_random_walk)
     gyro_bias_sigma_radps: float = 7.0e-5  # turn-on bias std, rad/s (ADIS16448 in-run stability 14.5 deg/h)
     accel_bias_sigma_mps2: float = 2.5e-3  # turn-on bias std, m/s^2 (ADIS16448 in-run stability 0.25 mg)
-    gravity_mps2: float = 9.81  # magnitude of gravity, m/s^2 (world -z)
+    gravity_mps2: float = 9.80665  # magnitude of gravity, m/s^2, world -z (standard gravity, CGPM 1901)
     T_imu_cam: tuple[tuple[float, ...], ...] = field(default_factory=_default_T_imu_cam)
     """IMU-from-camera 4x4: the camera's pose in the IMU frame (rigid, both on the gimbal head)."""
     # --- LIDAR (baseline sensor, paper Table II) ---------------------------------------------------------
@@ -70,8 +70,8 @@ class SimConfig:
     lidar_shot_quantum_m: float = 1e-3  # shot noise: range = q * Poisson(range / q), metres (§III-D-6)
     # --- lighting and atmosphere ------------------------------------------------------------------------
     sun_elevation_deg: tuple[float, float] = (35.0, 60.0)  # range the world's sun elevation is drawn from
-    haze_visibility_m: float | None = 3000.0  # meteorological visibility, metres (None: no haze)
-    exposure: float = 1.9  # linear radiance to [0, 1] scale before the sRGB curve
+    haze_visibility_m: float | None = 8000.0  # meteorological visibility, metres (None: no haze)
+    exposure: float = 1.7  # linear radiance to [0, 1] scale before the sRGB curve
     shot_noise_full_well: float = 600.0  # photo-electrons at full scale (Poisson shot noise, §III-D-6)
     # --- truth -----------------------------------------------------------------------------------------
     target_samples: int = 1200  # surface samples used for visible_fraction

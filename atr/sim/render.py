@@ -11,13 +11,13 @@ import numpy as np
 import open3d as o3d
 
 from atr.errors import InputError
-from atr.sim._shading import albedo
+from atr.sim._shading import compose, make_rays, srgb8, surface_points
 from atr.sim.config import SimConfig
 from atr.sim.visibility import _EPS_M, raycasting_scene, target_samples
 from atr.sim.world import World
 
-_SUN_RGB = np.array([1.00, 0.93, 0.82], np.float32)  # direct sun irradiance (relative, linear RGB)
-_SKY_RGB = np.array([0.30, 0.36, 0.48], np.float32)  # diffuse sky irradiance on an upward surface
+_SUN_RGB = np.array([1.25, 1.16, 1.02], np.float32)  # direct sun irradiance (relative, linear RGB)
+_SKY_RGB = np.array([0.24, 0.29, 0.40], np.float32)  # diffuse sky irradiance on an upward surface
 _HAZE_RGB = np.array([0.62, 0.67, 0.74], np.float32)  # colour of distant haze (linear)
 _ZENITH_RGB = np.array([0.16, 0.28, 0.55], np.float32)  # sky radiance straight up (linear)
 _SHADOW_BIAS_M = 0.02  # shadow rays start this far off the surface (plus 2e-4 x range)
@@ -45,7 +45,7 @@ class Renderer:
                            np.arange(self.cfg.height_px, dtype=np.float64))
         self._dirs_cam = np.column_stack([(u.ravel() - self.K[0, 2]) / self.K[0, 0],
                                           (v.ravel() - self.K[1, 2]) / self.K[1, 1],
-                                          np.ones(u.size)])
+                                          np.ones(u.size)])  # z = 1: t_hit is the z-depth
         self._samples = target_samples(world.target_local, world.T_world_target, self.cfg.target_samples)
 
     # ------------------------------------------------------------------------------------------ camera
@@ -61,59 +61,24 @@ class Renderer:
             depth (H, W) float32 z-depth along the optical axis, metres (inf where the sky shows).
         """
         cfg = self.cfg
-        R = np.asarray(T_world_cam, dtype=np.float64)[:3, :3]
-        o = np.asarray(T_world_cam, dtype=np.float64)[:3, 3]
-        d_world = self._dirs_cam @ R.T
-        rays = np.empty((d_world.shape[0], 6), np.float32)
-        rays[:, :3] = o
-        rays[:, 3:] = d_world
-        ans = self.scene.cast_rays(o3d.core.Tensor(rays))
+        T = np.asarray(T_world_cam, dtype=np.float64)
+        rays = make_rays(self._dirs_cam, np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
+        ans = self.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         t = ans["t_hit"].numpy()
-        hit = np.isfinite(t)
-        idx = np.nonzero(hit)[0]
-        prim = ans["primitive_ids"].numpy()[idx].astype(np.int64)
-        geom = ans["geometry_ids"].numpy()[idx]
-        nrm = ans["primitive_normals"].numpy()[idx].astype(np.float64)
-        dirs = d_world[idx]
-        th = t[idx].astype(np.float64)
-        pos = o + dirs * th[:, None]
-        ray_len = np.linalg.norm(dirs, axis=1)
-        dist = th * ray_len
-        # face the camera: imported meshes and thin parts may have either winding
-        cos_i = np.einsum("ij,ij->i", nrm, dirs) / ray_len
-        flip = cos_i > 0
-        nrm[flip] *= -1.0
-        cos_i = np.abs(cos_i)
-        mat = np.where(geom == self._target_id, self._mat_target[np.minimum(prim, len(self._mat_target) - 1)],
-                       self._mat_static[np.minimum(prim, len(self._mat_static) - 1)]).astype(np.int16)
-        footprint = dist / self.K[0, 0] / np.maximum(cos_i, _GRAZING_COS_MIN)
-        alb = albedo(mat, pos, nrm, footprint, self.world.ground_rects, self.world.seed)
-        # sun and shadows: a second ray cast towards the sun
-        sun = self.world.sun_dir
-        ndl = nrm @ sun
-        lit_idx = np.nonzero(ndl > 0)[0]
-        sh_rays = np.empty((lit_idx.size, 6), np.float32)
-        sh_rays[:, :3] = pos[lit_idx] + nrm[lit_idx] * (_SHADOW_BIAS_M + 2e-4 * dist[lit_idx])[:, None]
-        sh_rays[:, 3:] = sun
-        occluded = self.scene.test_occlusions(o3d.core.Tensor(sh_rays)).numpy()
-        direct = np.zeros(idx.size, np.float32)
-        direct[lit_idx] = np.where(occluded, 0.0, ndl[lit_idx])
-        sky = (0.55 + 0.45 * nrm[:, 2]).astype(np.float32)
-        rad = alb * (direct[:, None] * _SUN_RGB + sky[:, None] * _SKY_RGB)
-        if cfg.haze_visibility_m is not None:
-            f = np.exp(-3.912 * dist / cfg.haze_visibility_m).astype(np.float32)[:, None]
-            rad = rad * f + _HAZE_RGB * 0.45 * (1.0 - f)
-        img = np.empty((t.size, 3), np.float32)
-        img[idx] = rad * cfg.exposure
-        miss = np.nonzero(~hit)[0]
-        if miss.size:
-            dm = d_world[miss]
-            el = np.clip(dm[:, 2] / np.linalg.norm(dm, axis=1), -1.0, 1.0)
-            w = np.clip(el, 0.0, 1.0) ** 0.5
-            img[miss] = ((1 - w)[:, None] * _HAZE_RGB + w[:, None] * _ZENITH_RGB) * 0.75
-        depth = np.where(hit, t, np.inf).astype(np.float32)
-        H, W = cfg.height_px, cfg.width_px
-        return img.reshape(H, W, 3), depth.reshape(H, W)
+        pos, nrm, mat, fp, dist, ndl, sh = surface_points(
+            rays, t, ans["primitive_ids"].numpy(), ans["geometry_ids"].numpy(),
+            ans["primitive_normals"].numpy(), self._mat_static, self._mat_target, self._target_id,
+            float(self.K[0, 0]), _GRAZING_COS_MIN, self.world.sun_dir, _SHADOW_BIAS_M)
+        # sun and shadows: a second ray cast towards the sun, only from surfaces facing it
+        lit = np.nonzero(ndl > 0)[0]
+        occluded = self.scene.test_occlusions(o3d.core.Tensor.from_numpy(np.ascontiguousarray(sh[lit]))).numpy()
+        direct = np.zeros(t.size)
+        direct[lit] = np.where(occluded, 0.0, ndl[lit])
+        haze_k = 0.0 if cfg.haze_visibility_m is None else 3.912 / cfg.haze_visibility_m
+        img = compose(mat, pos, nrm, fp, dist, direct, rays, self.world.ground_rects, self.world.seed,
+                      _SUN_RGB, _SKY_RGB, _HAZE_RGB, _ZENITH_RGB, haze_k, cfg.exposure)
+        depth = (t.astype(np.float32)).reshape(cfg.height_px, cfg.width_px)
+        return img.reshape(cfg.height_px, cfg.width_px, 3), depth
 
     # ------------------------------------------------------------------------------------------ truth
 
@@ -127,12 +92,12 @@ class Renderer:
         dirs = d / dist[:, None]
         rays = np.concatenate([np.broadcast_to(o, d.shape), dirs], axis=1).astype(np.float32)
         tol = _EPS_M + 1e-4 * dist
-        t_alone = self.target_scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+        t_alone = self.target_scene.cast_rays(o3d.core.Tensor.from_numpy(rays))["t_hit"].numpy()
         self_vis = t_alone >= dist - tol
         n_self = int(self_vis.sum())
         if n_self == 0:
             return 0.0
-        t_full = self.scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+        t_full = self.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))["t_hit"].numpy()
         seen = self_vis & (t_full >= dist - tol)
         pc = (pts - o) @ T[:3, :3]
         in_front = pc[:, 2] > 0.1
@@ -187,7 +152,7 @@ class Renderer:
         rays = np.empty((n * n, 6), np.float32)
         rays[:, :3] = o
         rays[:, 3:] = centre
-        t0 = self.scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy().astype(np.float64)
+        t0 = self.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))["t_hit"].numpy().astype(np.float64)
         t0 = np.where(np.isfinite(t0), t0, range_m)
         half_angle = 0.5 * (cfg.lidar_aperture_m / np.maximum(t0, 1.0) + cfg.lidar_divergence_mrad * 1e-3)
         sub = (centre[:, None, :] + half_angle[:, None, None] * (
@@ -207,9 +172,8 @@ class Renderer:
 
 def to_srgb8(img_linear: np.ndarray) -> np.ndarray:
     """Linear [0, 1] RGB -> sRGB uint8 (IEC 61966-2-1 curve)."""
-    x = np.clip(img_linear, 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-    return (s * 255.0 + 0.5).astype(np.uint8)
+    a = np.ascontiguousarray(img_linear, dtype=np.float32)
+    return srgb8(a.reshape(-1, 3)).reshape(a.shape)
 
 
 def project(points_world: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray) -> np.ndarray:

@@ -54,8 +54,8 @@ def first_hit_reaches(scene: o3d.t.geometry.RaycastingScene, origins: np.ndarray
 
 
 def target_visibility_rays(static: Mesh, target_world: Mesh, target_local: Mesh,
-                           T_world_target: np.ndarray, cams: np.ndarray, cfg: SimConfig
-                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                           T_world_target: np.ndarray, cams: np.ndarray, cfg: SimConfig,
+                           n_samples: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Visibility of the target samples from camera centres, ignoring the image frame.
 
     Args:
@@ -65,7 +65,7 @@ def target_visibility_rays(static: Mesh, target_world: Mesh, target_local: Mesh,
         sample points (S, 3); seen (F, S) bool: seen in the full scene; self_vis (F, S) bool: seen with
         the target alone. The visible fraction of frame f is seen[f].sum() / self_vis[f].sum().
     """
-    pts = target_samples(target_local, T_world_target, cfg.target_samples)
+    pts = target_samples(target_local, T_world_target, n_samples or cfg.target_samples)
     full, _ = raycasting_scene([static, target_world])
     alone, _ = raycasting_scene([target_world])
     self_vis = first_hit_reaches(alone, cams, pts)

@@ -16,8 +16,7 @@ import numpy as np
 from atr.errors import InputError
 from atr.sim import materials as M
 from atr.sim.config import SimConfig
-from atr.sim.mesh import (Mesh, box, cylinder, ellipsoid, gable_roof, merge, octahedron, place, pose,
-                          rot_z)
+from atr.sim.mesh import Mesh, box, cylinder, gable_roof, merge, place, pose, rot_z
 from atr.sim.scenarios import Scenario
 from atr.sim.trajectory import Orbit, make_orbit
 from atr.sim.vehicles import car, ifv, t72, truck_6x6
@@ -31,7 +30,8 @@ _SIDEWALK_M = 2.5  # sidewalk width, metres
 _CITY_HALF_M = 330.0  # buildings are placed within this half size, metres
 _TARGET_TOP_M = 2.2  # a building lower than this above the line of sight cannot hide the target
 _CLEAR_AROUND_TARGET_M = 9.0  # no building or tree this close to the target, metres
-_UAV_CLEARANCE_M = 8.0  # horizontal and vertical margin kept between the orbit and any object, metres
+_UAV_CLEARANCE_M = 8.0
+_TUNING_SAMPLES = 400  # target surface samples used when tuning the occluder  # horizontal and vertical margin kept between the orbit and any object, metres
 
 
 @dataclass(frozen=True)
@@ -168,17 +168,21 @@ def tree(rng: np.random.Generator, height_m: float) -> Mesh:
         b = cylinder(0.5 * trunk_r, length, 6, M.BARK)
         R = _rot_from_z(d)
         parts.append(b.transformed(pose(R, c)))
-    n_clumps = int(60 + 5.0 * crown_r**2)
+    n_clumps = int(80 + 45.0 * crown_r**2)
     u = rng.normal(size=(n_clumps, 3))
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     rad = crown_r * rng.random(n_clumps) ** 0.4
     centers = u * rad[:, None] * np.array([1.0, 1.0, 0.8]) + np.array([0, 0, crown_z])
-    sizes = rng.uniform(0.25, 0.55, n_clumps) * (0.7 + 0.1 * crown_r)
-    base = octahedron(1.0, material=M.FOLIAGE)
-    for c, s in zip(centers, sizes, strict=True):
-        R = _random_rotation(rng)
-        scale = np.diag([s, s * rng.uniform(0.6, 1.0), s * rng.uniform(0.4, 0.8)])
-        parts.append(Mesh(base.vertices @ (R @ scale).T + c, base.triangles, base.material))
+    sizes = rng.uniform(0.15, 0.35, n_clumps) * (0.8 + 0.07 * crown_r)
+    scale = sizes[:, None] * np.column_stack([np.ones(n_clumps), rng.uniform(0.6, 1.0, n_clumps),
+                                              rng.uniform(0.4, 0.8, n_clumps)])
+    R = _random_rotations(rng, n_clumps)
+    # leaf clumps are small tetrahedra: 4 triangles each, sharp-edged like leaf clusters seen from afar
+    tet_v = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]]) / np.sqrt(3)
+    tet_t = np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]])
+    v = np.einsum("nij,kj->nki", R * scale[:, None, :], tet_v) + centers[:, None, :]
+    t = tet_t[None] + 4 * np.arange(n_clumps)[:, None, None]
+    parts.append(Mesh(v.reshape(-1, 3), t.reshape(-1, 3), np.full(4 * n_clumps, M.FOLIAGE)))
     return merge(parts)
 
 
@@ -189,13 +193,16 @@ def _rot_from_z(d: np.ndarray) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def _random_rotation(rng: np.random.Generator) -> np.ndarray:
-    q = rng.normal(size=4)
-    q /= np.linalg.norm(q)
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+def _random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
+    """(n, 3, 3) uniformly random rotations (from unit quaternions)."""
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1),
+    ], axis=1)
 
 
 # ---------------------------------------------------------------------------------------------- layout
@@ -321,14 +328,19 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
 
     items: list[_Item] = []
 
+    occ_xyr = np.zeros((0, 3))  # occupied discs (x, y, radius)
+
     def free(x, y, r):
         if np.hypot(x - target_xy[0], y - target_xy[1]) < r + 5.0:
             return False
-        return all(np.hypot(x - it.x, y - it.y) > r + it.radius + 0.5 for it in items)
+        d = np.hypot(occ_xyr[:, 0] - x, occ_xyr[:, 1] - y)
+        return bool(np.all(d > r + occ_xyr[:, 2] + 0.5))
 
     def add(mesh_local, x, y, yaw, r, h, kind, sink=0.0):
+        nonlocal occ_xyr
         z = float(ground(x, y)) - sink
         items.append(_Item(place(mesh_local, x, y, z, yaw), x, y, r, h, kind))
+        occ_xyr = np.vstack([occ_xyr, [[x, y, r]]])
 
     # --- buildings in the blocks between streets ---------------------------------------------------------
     n_blocks = [int(_CITY_HALF_M / s) + 2 for s in spacing]
@@ -446,7 +458,7 @@ def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Me
     times = frame_times_s(sc, cfg)
     cams = np.array([(orbit.T_world_imu(t) @ cfg.T_imu_cam_matrix)[:3, 3] for t in times])
     pts, seen, self_vis = target_visibility_rays(static, target_world, target_local, T_world_target,
-                                                 cams, cfg)
+                                                 cams, cfg, n_samples=_TUNING_SAMPLES)
     n_self = np.maximum(self_vis.sum(axis=1), 1)
     ends = np.broadcast_to(pts, (cams.shape[0],) + pts.shape)
     txy = T_world_target[:2, 3]
@@ -475,7 +487,7 @@ def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Me
     if hidden_share(hi) < sc.absent_ratio:
         lo = hi
     else:
-        for _ in range(14):
+        for _ in range(10):
             mid = 0.5 * (lo + hi)
             if hidden_share(mid) < sc.absent_ratio:
                 lo = mid
