@@ -85,10 +85,10 @@ def keypoint_coordinates(points: np.ndarray, keypoints: np.ndarray) -> np.ndarra
 
 
 def check_radius(radius: float) -> float:
-    """Return ``radius`` as float, raising ConfigError unless it is finite and > 0 (metres)."""
+    """Return ``radius`` as float, raising InputError (as the describe() contract) unless finite and > 0 (m)."""
     r = float(radius)
     if not (math.isfinite(r) and r > 0):
-        raise ConfigError(f"support radius {radius} m must be a finite value > 0")
+        raise InputError(f"support radius {radius} m must be a finite value > 0")
     return r
 
 
@@ -485,7 +485,7 @@ def fpfh(points: np.ndarray, normals: np.ndarray, keypoints: np.ndarray, radius:
 
     Raises:
         InputError: bad array shapes or keypoint indices.
-        ConfigError: radius not finite and > 0.
+        InputError: radius not finite and > 0.
     """
     r = check_radius(radius)
     pts64 = as_points(points)

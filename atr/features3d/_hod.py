@@ -96,7 +96,7 @@ def hod(points: np.ndarray, keypoints: np.ndarray, radius: float, *, short: bool
 
     Raises:
         InputError: bad shapes or keypoint indices.
-        ConfigError: radius not finite and > 0.
+        InputError: radius not finite and > 0.
     """
     r = check_radius(radius)
     pts64 = as_points(points)

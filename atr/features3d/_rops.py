@@ -416,7 +416,8 @@ def rops(
 
     Raises:
         InputError: bad shapes, keypoint or triangle indices out of range.
-        ConfigError: radius, partition_bins or rotations out of range (PCL silently keeps its previous value).
+        InputError: radius not finite and > 0.
+        ConfigError: partition_bins or rotations < 1 (PCL silently keeps its previous value).
     """
     r = check_radius(radius)
     if int(partition_bins) < 1:

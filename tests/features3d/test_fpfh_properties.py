@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from atr.errors import ConfigError, InputError
+from atr.errors import InputError
 from atr.features3d._fpfh import fpfh
 
 
@@ -81,7 +81,7 @@ def test_non_finite_surface_points_are_ignored():
 
 def test_bad_inputs():
     pts, nrm = surface(200)
-    with pytest.raises(ConfigError):
+    with pytest.raises(InputError):
         fpfh(pts, nrm, np.array([0]), 0.0)
     with pytest.raises(InputError):
         fpfh(pts, nrm[:10], np.array([0]), 0.05)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from atr.errors import ConfigError, InputError
+from atr.errors import InputError
 from atr.features3d._hod import hod
 
 
@@ -88,7 +88,7 @@ def test_invalid_neighbourhoods_and_inputs():
     assert np.isnan(out[:2]).all() and np.isfinite(out[2]).all()
     assert np.isnan(hod(pts, np.array([0]), 1e-6)).all()  # the keypoint alone
     assert hod(pts, np.zeros(0, dtype=np.int64), 0.08).shape == (0, 240)
-    with pytest.raises(ConfigError):
+    with pytest.raises(InputError):
         hod(pts, np.array([0]), 0.0)
     with pytest.raises(InputError):
         hod(pts, np.array([len(pts)]), 0.08)

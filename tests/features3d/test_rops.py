@@ -63,7 +63,7 @@ def test_pcl_properties(mesh, ours):
     for bad in ({"partition_bins": 0}, {"rotations": 0}):  # (b) PCL ignores these; we refuse them
         with pytest.raises(ConfigError):
             rops(pts, idx[:3], RADIUS, triangles=tri, **bad)
-    with pytest.raises(ConfigError):
+    with pytest.raises(InputError):
         rops(pts, idx[:3], -RADIUS, triangles=tri)
     # (c) no triangles: PCL gives no output, we give NaN rows of the documented shape.
     empty = rops(pts, idx[:3], RADIUS, triangles=np.zeros((0, 3), dtype=np.int64))
