@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
                                 pose["T_world_cam_t"], pose["T_world_cam_t1"], config)
             node.publish(keys.sfm_cloud(args.uav), _cloud(
                 image_b["stamp_ns"], source, [pose["frame_seq_t"], frame], cloud.points_world_m,
-                cloud.sigma_m, pose["T_world_cam_t1"][:3, 3], cloud.stats.get("reason")))
+                cloud.sigma_m, pose["T_world_cam_t1"][:3, 3], cloud.reason or None))
             stages = {k[5:-2]: 1e3 * v for k, v in cloud.stats.items() if k.startswith("time_")}
             node.timing(trigger.seq, image_b["stamp_ns"], stages)
 
