@@ -6,6 +6,8 @@
   publish_time = the message's stamp_ns; sequence = its seq. Both come from the attachment, else from the
   payload itself (`codec.unpack`), else 0;
 - bytes are written as received: nothing is re-encoded, nothing rejected (a bad message is evidence);
+- one Zenoh subscriber (on `**`, filtered, when several key expressions are asked for), so messages are written
+  in the order the link delivered them: Zenoh runs callbacks of different subscribers concurrently;
 - Zenoh's callback only timestamps and enqueues (unbounded queue: no loss); a writer thread does the rest;
 - a chunk is closed when it exceeds `chunk_size_bytes` or `flush_interval_s` after its first message, so a
   `kill -9` loses at most about that long; SIGINT/SIGTERM close the file with its summary and indexes.
@@ -122,12 +124,20 @@ class Recorder:
         self._last_seq: dict[tuple[str, str], int] = {}
         self._thread = threading.Thread(target=self._write_loop, name="mcap-writer", daemon=True)
         self._thread.start()
-        self._subscribers = [session.declare_subscriber(k, self._on_sample) for k in self.config.key_exprs]
+        # One subscriber only: Zenoh runs different subscribers' callbacks concurrently, so two of them
+        # (atr/**, sim/**) would interleave the link's order; with several key expressions we take `**`
+        # and keep the samples that match one of them.
+        exprs = self.config.key_exprs
+        self._filters = [zenoh.KeyExpr(k) for k in exprs] if len(exprs) > 1 else []
+        sub_key = exprs[0] if len(exprs) == 1 else "**"
+        self._subscribers = [session.declare_subscriber(sub_key, self._on_sample)]
         self._closed = False
 
     # Zenoh callback thread -----------------------------------------------------------------------
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
+        if self._filters and not any(f.intersects(sample.key_expr) for f in self._filters):
+            return
         payload = sample.payload.to_bytes()
         attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
         key = str(sample.key_expr)

@@ -24,7 +24,7 @@ REPO = Path(__file__).resolve().parents[1]
 _HUB_CODE = """
 import signal, sys, threading
 from bus.session import default_config, open_session
-session = open_session(default_config("router", connect=[], listen=[sys.argv[1]]))
+session = open_session(default_config(sys.argv[2] if len(sys.argv) > 2 else "peer", connect=[], listen=[sys.argv[1]]))
 stop = threading.Event()
 for sig in (signal.SIGTERM, signal.SIGINT):
     signal.signal(sig, lambda *_: stop.set())
