@@ -48,6 +48,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"\nF1 {counts.f1:.3f} (TP {counts.tp}, FP {counts.fp}, FN {counts.fn}, TN {counts.tn}) over "
           f"{counts.tp + counts.fp + counts.fn + counts.tn} scenes")
     print(f"recording: {out}")
+    from bus.foxglove_export import export_foxglove  # noqa: PLC0415
+
+    foxglove_path = out.with_name(out.stem + "-foxglove.mcap")
+    export_foxglove(out, foxglove_path)
+    print(f"for Foxglove: {foxglove_path}")
     for name, codes in result.failures.items():
         print(f"process {name} failed (exit codes {codes}); its log: {result.log_dir / (name + '.log')}")
     return 1 if result.failures else 0
