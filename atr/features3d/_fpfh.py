@@ -34,6 +34,9 @@ FPFH_BINS_PER_FEATURE = 11
 FPFH_LENGTH = 3 * FPFH_BINS_PER_FEATURE
 # PCL scales every SPFH increment and every final FPFH sub-histogram to a sum of 100 (percent).
 _PERCENT = np.float32(100.0)
+# Fewer points than this within the radius of a keypoint (itself included when it is a cloud point) give a NaN
+# row: PCL describes any neighbourhood, but a histogram of 2-3 SPFHs is noise (package-wide minimum, as SHOT).
+FPFH_MIN_NEIGHBOURS = 5
 # Most cells the uniform search grid may have (int64 start table of 8 × 2^22 bytes); beyond it cells grow.
 _MAX_GRID_CELLS = 1 << 22
 
@@ -350,11 +353,13 @@ def _spfh_rows(origin, cell, dims, order, starts, pts, nrm, centres, r2, nbins):
 
 
 @numba.njit(cache=True, parallel=True)
-def _weight_spfh(kp, pts, offsets, nbrs, row_of, spfh, r2, nbins):
+def _weight_spfh(kp, pts, offsets, nbrs, row_of, spfh, r2, nbins, min_neighbours):
     """FPFH rows: Σ SPFH(q)/d² over the keypoint's neighbours, each sub-histogram rescaled to 100."""
     k_count = kp.shape[0]
     out = np.full((k_count, 3 * nbins), np.nan, dtype=np.float32)
     for k in numba.prange(k_count):
+        if offsets[k + 1] - offsets[k] < min_neighbours:
+            continue
         acc = np.zeros(3 * nbins, dtype=np.float32)
         sums = np.zeros(3, dtype=np.float32)
         for t in range(offsets[k], offsets[k + 1]):
@@ -480,8 +485,8 @@ def fpfh(points: np.ndarray, normals: np.ndarray, keypoints: np.ndarray, radius:
         radius: neighbourhood radius of both the SPFH and the FPFH weighting, metres (> 0).
 
     Returns:
-        (K, 33) float32: f1, f2, f3 sub-histograms (11 bins each), each summing to 100. A row is NaN when the
-        keypoint has no neighbour (other than itself) with a valid SPFH.
+        (K, 33) float32: f1, f2, f3 sub-histograms (11 bins each), each summing to 100. A row is NaN when fewer
+        than FPFH_MIN_NEIGHBOURS points lie within the radius, or no neighbour has a valid SPFH.
 
     Raises:
         InputError: bad array shapes or keypoint indices.
@@ -517,4 +522,4 @@ def fpfh(points: np.ndarray, normals: np.ndarray, keypoints: np.ndarray, radius:
     row_of = np.full(pts.shape[0], -1, dtype=np.int64)
     row_of[needed] = np.arange(needed.shape[0])
     rows = _spfh_rows(*grid.args(), pts, nrm, needed, r2, FPFH_BINS_PER_FEATURE)
-    return _weight_spfh(kp, pts, kp_off, kp_nbrs, row_of, rows, r2, FPFH_BINS_PER_FEATURE)
+    return _weight_spfh(kp, pts, kp_off, kp_nbrs, row_of, rows, r2, FPFH_BINS_PER_FEATURE, FPFH_MIN_NEIGHBOURS)

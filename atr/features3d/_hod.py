@@ -13,7 +13,8 @@ docs/features3d_fpfh_rops_hod.md; in short:
 - each part divided by the number of pairs (each sums to 1), so the descriptor does not depend on point density;
 - HoD = coarse ‖ fine (240 values), HoD-S = coarse (40 values).
 
-Only distances enter, so the descriptor is invariant to any rotation and translation by construction (no LRF, no
+Distances are computed in float64 from the input coordinates (float32 would move pairs across the 200 fine bin
+edges under a mere rotation). Only distances enter, so the descriptor is invariant to any rotation and translation by construction (no LRF, no
 normals). O(|V|²) per keypoint; numba, parallel over keypoints.
 """
 
@@ -35,7 +36,7 @@ HOD_MIN_POINTS = 5
 
 
 @numba.njit(cache=True, parallel=True)
-def _hod_kernel(pts, kp, offsets, nbrs, r2, radius, coarse, fine, min_points):
+def _hod_kernel(pts, pts64, kp, offsets, nbrs, r2, radius, coarse, fine, min_points):
     k_count = kp.shape[0]
     length = coarse + fine
     out = np.full((k_count, length), np.nan, dtype=np.float32)
@@ -56,7 +57,7 @@ def _hod_kernel(pts, kp, offsets, nbrs, r2, radius, coarse, fine, min_points):
         loc = np.empty((n, 3), dtype=np.float64)
         for t in range(n):
             for a in range(3):
-                loc[t, a] = pts[local[t], a]
+                loc[t, a] = pts64[local[t], a]
         # One histogram at the finest resolution; the coarse one sums groups of fine bins (exact when, as
         # here, fine is a multiple of coarse; HoD-S bins the distances at the coarse resolution directly).
         res = fine if fine > 0 else coarse
@@ -108,5 +109,5 @@ def hod(points: np.ndarray, keypoints: np.ndarray, radius: float, *, short: bool
     kp = np.ascontiguousarray(kp64, dtype=np.float32)
     offsets, nbrs = radius_csr(pts, kp, r)
     return _hod_kernel(
-        pts, kp, offsets, nbrs, pcl_squared_radius(r), r, HOD_COARSE_BINS, fine, HOD_MIN_POINTS
+        pts, pts64, kp, offsets, nbrs, pcl_squared_radius(r), r, HOD_COARSE_BINS, fine, HOD_MIN_POINTS
     )
