@@ -135,6 +135,7 @@ def test_malformed_scene_raises_input_error(small_template):
         recognize(np.array([["a", "b", "c"]]), [tpl], cfg, seed=0)
 
 
+@pytest.mark.slow
 def test_two_million_points_bounded(small_template):
     """Subsampling comes first, so a 2M-point cloud costs about as much as its 0.3 m voxels."""
     cfg, tpl = small_template

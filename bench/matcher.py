@@ -1,0 +1,78 @@
+"""Time per matcher stage per descriptor on an SfM-like cloud (~10k points) and a LIDAR-like cloud (~260k).
+
+Prints the median of several runs per stage, and the total as a ratio to a fixed numpy reference workload
+timed in the same process (so figures compare across machines).
+
+    python bench/matcher.py [--runs 3] [--descriptors shot fpfh ...] [--clouds sfm lidar]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+from atr.recognition import STAGES, RecognitionConfig, build_template, recognize
+from atr.recognition import synthetic as syn
+from atr.recognition._backend import have_descriptor
+
+
+def _reference_ms() -> float:
+    rng = np.random.default_rng(0)
+    a = rng.random(1_000_000)
+    times = []
+    for _ in range(5):
+        t = time.perf_counter()
+        np.sort(a)
+        times.append((time.perf_counter() - t) * 1e3)
+    return statistics.median(times)
+
+
+def _clouds(mesh) -> dict[str, np.ndarray]:
+    T = syn.pose(0.0, -2.0, 0.7)
+    veh = [((mesh.vertices, mesh.triangles), T)]
+    # SfM-like: sparse, noisy, concentrated around the target (GFTT/KLT ~10k points, paper §III-D-3).
+    sfm = syn.aerial_scene(veh, seed=1, extent_m=15, n_clutter=3, samples_per_m2=12, noise_m=0.1)
+    # LIDAR-like: dense and wide (~260k points).
+    lidar = syn.aerial_scene(veh, seed=2, extent_m=45, n_clutter=20, samples_per_m2=45, noise_m=0.03)
+    return {"sfm": sfm, "lidar": lidar}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--descriptors", nargs="+", default=["hod-s", "hod", "fpfh", "shot", "rops", "usc", "3dsc"])
+    ap.add_argument("--clouds", nargs="+", default=["sfm", "lidar"])
+    args = ap.parse_args()
+    from atr.sim.vehicles import t72
+
+    mesh = t72()
+    clouds = _clouds(mesh)
+    ref = _reference_ms()
+    print(f"reference (sort of 1M float64): {ref:.1f} ms")
+    print("cloud  points  descriptor " + " ".join(f"{s:>9}" for s in STAGES) + "     total  x ref  found")
+    for name in args.clouds:
+        pts = clouds[name]
+        for desc in args.descriptors:
+            if not have_descriptor(desc):
+                print(f"{name:5} {len(pts):7d}  {desc:10} not available")
+                continue
+            cfg = RecognitionConfig(descriptor=desc)
+            try:
+                tpl = build_template(mesh.vertices, mesh.triangles, "t72", desc, cfg)
+            except Exception as exc:  # noqa: BLE001 - a missing descriptor must not stop the bench
+                print(f"{name:5} {len(pts):7d}  {desc:10} failed: {exc}")
+                continue
+            recognize(pts, [tpl], cfg, seed=0)  # warm-up (JIT)
+            runs = [recognize(pts, [tpl], cfg, seed=0) for _ in range(args.runs)]
+            med = {s: statistics.median(r.stage_times_ms[s] for r in runs) for s in (*STAGES, "total")}
+            found = any(d.target == "t72" and np.linalg.norm(d.T_world_target[:2, 3] - (0, -2)) < 2
+                        for d in runs[0].detections)
+            print(f"{name:5} {len(pts):7d}  {desc:10} " + " ".join(f"{med[s]:9.1f}" for s in STAGES)
+                  + f" {med['total']:9.1f} {med['total'] / ref:6.1f}  {found}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
