@@ -1,0 +1,150 @@
+"""2D templates of the target (paper §III-D): 12 image crops from scenario 1 run 1, one per 30 deg of azimuth.
+
+For each azimuth step the frame of the run whose viewing azimuth (the camera's bearing in the target's own
+frame) is nearest is rendered, and the target's projected bounding box (plus a margin) is cropped. Only the
+frames needed are rendered: the run's camera poses come from its orbit exactly as `simulate_flight` computes them.
+A template also keeps where the target's origin (the ground point under its centre, what T_error is measured
+on) projects inside the crop; the detector maps that point into the scene.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from atr.baselines2d.config import Baseline2dConfig
+from atr.baselines2d.features import Features2d, detect_and_describe
+from atr.errors import InputError
+from atr.sim.config import SimConfig
+from atr.sim.mesh import Mesh
+from atr.sim.render import Renderer, to_srgb8
+from atr.sim.scenarios import scenario as scenario_preset
+from atr.sim.world import World, build_world
+
+
+@dataclass(frozen=True)
+class TemplateView:
+    """One cropped view of the target.
+
+    Attributes:
+        target: target name.
+        azimuth_deg: the template's azimuth step, degrees (0, 30, ...).
+        frame_azimuth_deg: viewing azimuth of the frame it was cropped from, degrees.
+        frame: frame index in the template run.
+        image: (h, w, 3) uint8 RGB crop.
+        reference_px: (2,) float64 the target origin's projection in crop pixels.
+    """
+
+    target: str
+    azimuth_deg: float
+    frame_azimuth_deg: float
+    frame: int
+    image: np.ndarray
+    reference_px: np.ndarray
+
+
+@dataclass(frozen=True)
+class Template2d:
+    """A template view described with one Table IV combination."""
+
+    view: TemplateView
+    features: Features2d
+
+
+def viewing_azimuth_deg(T_world_target: np.ndarray, camera_position_m: np.ndarray) -> float:
+    """Bearing of the camera in the target's frame (0 deg: in front of it, counter-clockwise), degrees in [0, 360)."""
+    d = T_world_target[:3, :3].T @ (np.asarray(camera_position_m, np.float64) - T_world_target[:3, 3])
+    return float(np.degrees(np.arctan2(d[1], d[0])) % 360.0)
+
+
+def project(points_world_m: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray) -> np.ndarray:
+    """(N, 2) pixel positions of world points (N, 3); NaN behind the camera."""
+    T_cam_world = np.linalg.inv(T_world_cam)
+    p = points_world_m @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]
+    uv = p @ np.asarray(K).T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = uv[:, :2] / uv[:, 2:3]
+    out[p[:, 2] <= 0] = np.nan
+    return out
+
+
+def _frame_pose(world: World, cfg: SimConfig, t_s: float) -> np.ndarray:
+    st = world.orbit.state(np.array([t_s]))
+    T_world_imu = np.eye(4)
+    T_world_imu[:3, :3] = st.R_world_imu[0]
+    T_world_imu[:3, 3] = st.p_world[0]
+    return T_world_imu @ cfg.T_imu_cam_matrix
+
+
+def crop_template_views(seed: int, sim_config: SimConfig, config: Baseline2dConfig, *,
+                        target_mesh: Mesh | None = None, target_name: str | None = None,
+                        clutter_meshes: tuple[Mesh, ...] = ()) -> list[TemplateView]:
+    """Render and crop the template views from the template run (scenario 1 run 1 by default).
+
+    Args:
+        seed: world seed (the templates come from the evaluated world, as in the paper).
+        sim_config: simulator settings (camera).
+        config: number of templates, crop margin, visibility floor.
+        target_mesh, target_name, clutter_meshes: as for `simulate_flight`.
+
+    Returns:
+        Up to `n_templates` views, in azimuth order; a step with no frame seeing the target well is skipped.
+
+    Raises:
+        InputError: no frame of the run sees the target.
+    """
+    sc = scenario_preset(config.template_scenario, config.template_run)
+    world = build_world(sc, seed, target_mesh=target_mesh, target_name=target_name,
+                        clutter_meshes=clutter_meshes, config=sim_config)
+    renderer = Renderer(world, sim_config)
+    interval = sim_config.frame_interval_s(sc.range_m)
+    poses = [_frame_pose(world, sim_config, k * interval) for k in range(sc.n_frames)]
+    azimuths = np.array([viewing_azimuth_deg(world.T_world_target, T[:3, 3]) for T in poses])
+    K = sim_config.K
+    views: list[TemplateView] = []
+    for step in range(config.n_templates):
+        wanted = step * config.azimuth_step_deg
+        gap = np.abs((azimuths - wanted + 180.0) % 360.0 - 180.0)
+        for k in np.argsort(gap, kind="stable")[:3]:  # nearest frame first; skip occluded ones
+            if gap[k] > config.azimuth_step_deg / 2:
+                break
+            T = poses[int(k)]
+            if renderer.visible_fraction(T) < config.min_template_visible_fraction:
+                continue
+            view = _crop(renderer, world, K, T, sim_config, config.crop_margin_frac)
+            if view is None:
+                continue
+            image, reference = view
+            views.append(TemplateView(world.target_name, wanted, float(azimuths[k]), int(k), image, reference))
+            break
+    if not views:
+        raise InputError(f"no frame of scenario {sc.scenario} run {sc.run} (seed {seed}) sees the target")
+    return views
+
+
+def _crop(renderer: Renderer, world: World, K: np.ndarray, T_world_cam: np.ndarray, cfg: SimConfig,
+          margin_frac: float) -> tuple[np.ndarray, np.ndarray] | None:
+    uv = project(world.target.vertices, K, T_world_cam)
+    if np.isnan(uv).any():
+        return None
+    lo, hi = uv.min(0), uv.max(0)
+    margin = margin_frac * (hi - lo)
+    x0, y0 = np.floor(np.maximum(lo - margin, 0)).astype(int)
+    x1, y1 = np.ceil(np.minimum(hi + margin, [cfg.width_px - 1, cfg.height_px - 1])).astype(int)
+    if x1 - x0 < 8 or y1 - y0 < 8:
+        return None
+    linear, _ = renderer.render(T_world_cam)
+    image = to_srgb8(linear)[y0:y1 + 1, x0:x1 + 1].copy()
+    origin = project(world.T_world_target[None, :3, 3], K, T_world_cam)[0]
+    return image, origin - np.array([x0, y0], np.float64)
+
+
+def describe_templates(views: list[TemplateView], pair: str, config: Baseline2dConfig) -> list[Template2d]:
+    """Describe every template view with one Table IV combination."""
+    return [Template2d(v, detect_and_describe(v.image, pair, config)) for v in views]
+
+
+def template_storage_bytes(templates: list[Template2d]) -> int:
+    """Storage of the templates' features (keypoint positions + descriptors), bytes (Table V)."""
+    return sum(t.features.nbytes for t in templates)
