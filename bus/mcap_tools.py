@@ -18,7 +18,9 @@ from __future__ import annotations
 
 import io
 import os
+import queue
 import struct
+import threading
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,6 +51,7 @@ MAGIC = bytes([137, 77, 67, 65, 80, 48, 13, 10])
 PROFILE = ""
 LIBRARY = "passive-atr recorder"
 _MESSAGE_HEAD = struct.Struct("<BQHIQQ")  # opcode, record length, channel, sequence, log_time, publish_time
+_CHUNK_HEAD = struct.Struct("<BQQQQII4sQ")  # opcode, length, start, end, size, crc, len("zstd"), "zstd", data len
 _U32 = 0xFFFFFFFF
 _U64 = 0xFFFFFFFFFFFFFFFF
 
@@ -65,6 +68,8 @@ class ChunkedWriter:
         chunk_size_bytes: a chunk is closed once its uncompressed records exceed this size.
         zstd_level: zstd compression level of chunks (1 = fastest).
         zstd_threads: zstd worker threads (0 = compress in the calling thread).
+        background: compress and write chunks on a thread of the writer's own, so that filling the next chunk
+            overlaps with compressing the last (zstd and crc32 release the GIL).
 
     Raises:
         RecordingError: the output cannot be opened.
@@ -77,6 +82,7 @@ class ChunkedWriter:
         chunk_size_bytes: int = 8 * 1024 * 1024,
         zstd_level: int = 1,
         zstd_threads: int = 0,
+        background: bool = False,
     ) -> None:
         if chunk_size_bytes <= 0:
             raise RecordingError(f"chunk size {chunk_size_bytes} bytes must be > 0")
@@ -108,7 +114,13 @@ class ChunkedWriter:
         self._chunk_messages = 0
         self._pos = 0
         self._closed = False
+        self._failure: BaseException | None = None
         self._write_records(lambda b: b.write(MAGIC), Header(PROFILE, LIBRARY).write)
+        self._jobs: queue.Queue[Any] | None = queue.Queue(maxsize=2) if background else None
+        self._thread = None
+        if self._jobs is not None:
+            self._thread = threading.Thread(target=self._compress_loop, name="mcap-chunks", daemon=True)
+            self._thread.start()
 
     # Public interface --------------------------------------------------------------------------
 
@@ -176,19 +188,52 @@ class ChunkedWriter:
         return self._chunk_messages
 
     def flush(self) -> None:
-        """Compress and write the chunk in progress (if it holds a message) and flush the stream."""
+        """Close the chunk in progress (if it holds a message): compress it and write it to the stream.
+
+        With `background=True` the compression and write happen on the writer's own thread (at most two chunks
+        wait for it); `close()` waits for them.
+
+        Raises:
+            RecordingError: an earlier background write failed.
+        """
+        self._raise_failure()
         if self._chunk_messages == 0:
             return
-        raw = bytes(self._buf)
+        job = (self._buf, self._index, self._chunk_start, self._chunk_end)
+        self._buf = bytearray()
+        self._index = {}
+        self._chunk_messages = 0
+        self.statistics.chunk_count += 1
+        if self._jobs is None:
+            self._write_chunk(*job)
+        else:
+            self._jobs.put(job)
+
+    def _compress_loop(self) -> None:
+        assert self._jobs is not None
+        while True:
+            job = self._jobs.get()
+            if job is None:
+                return
+            if self._failure is None:
+                try:
+                    self._write_chunk(*job)
+                except (OSError, zstandard.ZstdError) as exc:
+                    self._failure = exc
+
+    def _raise_failure(self) -> None:
+        if self._failure is not None:
+            raise RecordingError(f"writing the recording failed: {self._failure}") from self._failure
+
+    def _write_chunk(self, raw: bytearray, index: dict[int, list[tuple[int, int]]], start: int, end: int) -> None:
         compressed = self._zstd.compress(raw)
         chunk_offset = self._pos
         # Chunk record framed by hand: the compressed payload is written straight, not copied again.
-        head = struct.pack(
-            "<BQQQQI I4sQ".replace(" ", ""),
+        head = _CHUNK_HEAD.pack(
             Opcode.CHUNK,
             8 + 8 + 8 + 4 + 4 + 4 + 8 + len(compressed),
-            self._chunk_start,
-            self._chunk_end,
+            start,
+            end,
             len(raw),
             zlib.crc32(raw),
             4,
@@ -200,7 +245,7 @@ class ChunkedWriter:
         self._pos += len(head) + len(compressed)
         builder = RecordBuilder()
         offsets = {}
-        for channel_id, records in self._index.items():
+        for channel_id, records in index.items():
             offsets[channel_id] = self._pos + builder.count
             MessageIndex(channel_id=channel_id, records=records).write(builder)
         index_bytes = builder.end()
@@ -208,8 +253,8 @@ class ChunkedWriter:
         self._pos += len(index_bytes)
         self._chunk_indexes.append(
             ChunkIndex(
-                message_start_time=self._chunk_start,
-                message_end_time=self._chunk_end,
+                message_start_time=start,
+                message_end_time=end,
                 chunk_start_offset=chunk_offset,
                 chunk_length=len(head) + len(compressed),
                 message_index_offsets=offsets,
@@ -219,10 +264,6 @@ class ChunkedWriter:
                 uncompressed_size=len(raw),
             )
         )
-        self.statistics.chunk_count += 1
-        self._buf = bytearray()
-        self._index = {}
-        self._chunk_messages = 0
         self._f.flush()
 
     def close(self) -> None:
@@ -231,6 +272,11 @@ class ChunkedWriter:
             return
         self._closed = True
         self.flush()
+        if self._jobs is not None:
+            self._jobs.put(None)
+            assert self._thread is not None
+            self._thread.join()
+        self._raise_failure()
         # Definitions not yet followed by a message stay in the summary only.
         self._buf = bytearray()
         self._write_records(DataEnd(0).write)

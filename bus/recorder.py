@@ -115,6 +115,7 @@ class Recorder:
             chunk_size_bytes=self.config.chunk_size_bytes,
             zstd_level=self.config.zstd_level,
             zstd_threads=self.config.zstd_threads,
+            background=True,
         )
         self._on_problem = on_problem
         self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
@@ -169,7 +170,7 @@ class Recorder:
             if self._writer.pending_messages and now - first_pending_ns >= interval_ns and self.failure is None:
                 try:
                     self._writer.flush()
-                except OSError as exc:
+                except (OSError, RecordingError) as exc:
                     self._fail("*", exc)
 
     def _fail(self, key: str, exc: BaseException) -> None:
@@ -254,7 +255,7 @@ class Recorder:
         if self.failure is None:
             try:
                 self._writer.close()
-            except OSError as exc:
+            except (OSError, RecordingError) as exc:
                 self.failure = exc
         if self.failure is not None:
             raise RecordingError(f"recording {self.path} failed: {self.failure}") from self.failure
