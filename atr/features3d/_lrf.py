@@ -39,52 +39,65 @@ def _disambiguate(vij: np.ndarray, n: int, v: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _frame_one(points, centre, idx, d2, radius, min_valid, out):
-    n_all = idx.shape[0]
-    vij = np.empty((n_all, 3))
+def _offsets_of(points, centre, idx, out):
+    """Rows q - p of the valid neighbours (q != p), in neighbour order; returns their number."""
     n = 0
-    cov = np.zeros((3, 3))
-    wsum = 0.0
-    for t in range(n_all):
+    for t in range(idx.shape[0]):
         q = points[idx[t]]
         if q[0] == centre[0] and q[1] == centre[1] and q[2] == centre[2]:
             continue
         for u in range(3):
-            vij[n, u] = q[u] - centre[u]
-        w = radius - np.sqrt(d2[t])
-        for u in range(3):
-            for v in range(3):
-                cov[u, v] += w * vij[n, u] * vij[n, v]
-        wsum += w
+            out[n, u] = q[u] - centre[u]
         n += 1
-    if n < min_valid or not wsum > 0:
-        return False
-    cov /= wsum
-    evals, evecs = np.linalg.eigh(cov)
-    if not (np.isfinite(evals[0]) and np.isfinite(evals[1]) and np.isfinite(evals[2])):
-        return False
-    x = _disambiguate(vij, n, evecs[:, 2].copy())
-    z = _disambiguate(vij, n, evecs[:, 0].copy())
-    out[0] = x
-    out[2] = z
-    out[1, 0] = z[1] * x[2] - z[2] * x[1]
-    out[1, 1] = z[2] * x[0] - z[0] * x[2]
-    out[1, 2] = z[0] * x[1] - z[1] * x[0]
-    return True
+    return n
 
 
 @numba.njit(cache=True, parallel=True)
-def _frames(points, centres, offsets, indices, sq_dists, radius, min_valid):
+def _weighted_covariances(points, centres, offsets, indices, sq_dists, radius, min_valid):
     k = centres.shape[0]
-    out = np.full((k, 3, 3), np.nan)
+    cov = np.full((k, 3, 3), np.nan)
     for i in numba.prange(k):
         a = offsets[i]
         b = offsets[i + 1]
-        if not (np.isfinite(centres[i, 0]) and np.isfinite(centres[i, 1]) and np.isfinite(centres[i, 2])):
+        vij = np.empty((b - a, 3))
+        m = np.zeros((3, 3))
+        wsum = 0.0
+        n = 0
+        for t in range(a, b):
+            q = points[indices[t]]
+            if q[0] == centres[i, 0] and q[1] == centres[i, 1] and q[2] == centres[i, 2]:
+                continue
+            w = radius - np.sqrt(sq_dists[t])
+            for u in range(3):
+                vij[n, u] = q[u] - centres[i, u]
+            for u in range(3):
+                for v in range(3):
+                    m[u, v] += w * vij[n, u] * vij[n, v]
+            wsum += w
+            n += 1
+        if n >= min_valid and wsum > 0:
+            cov[i] = m / wsum
+    return cov
+
+
+@numba.njit(cache=True, parallel=True)
+def _orient(points, centres, offsets, indices, axes_x, axes_z):
+    k = centres.shape[0]
+    out = np.full((k, 3, 3), np.nan)
+    for i in numba.prange(k):
+        if not (np.isfinite(axes_x[i]).all() and np.isfinite(axes_z[i]).all()):
             continue
-        frame = np.empty((3, 3))
-        if _frame_one(points, centres[i], indices[a:b], sq_dists[a:b], radius, min_valid, frame):
-            out[i] = frame
+        a = offsets[i]
+        b = offsets[i + 1]
+        vij = np.empty((b - a, 3))
+        n = _offsets_of(points, centres[i], indices[a:b], vij)
+        x = _disambiguate(vij, n, axes_x[i].copy())
+        z = _disambiguate(vij, n, axes_z[i].copy())
+        out[i, 0] = x
+        out[i, 2] = z
+        out[i, 1, 0] = z[1] * x[2] - z[2] * x[1]
+        out[i, 1, 1] = z[2] * x[0] - z[0] * x[2]
+        out[i, 1, 2] = z[0] * x[1] - z[1] * x[0]
     return out
 
 
@@ -103,4 +116,16 @@ def shot_frames(
     Returns:
         (K, 3, 3) float64; rows x, y, z; NaN where undefined.
     """
-    return _frames(points, centres, nb.offsets, nb.indices, nb.sq_dists, float(radius), int(min_valid))
+    cov = _weighted_covariances(points, centres, nb.offsets, nb.indices, nb.sq_dists, float(radius),
+                                int(min_valid))
+    axes_x = np.full(centres.shape, np.nan)
+    axes_z = np.full(centres.shape, np.nan)
+    ok = np.isfinite(cov).all(axis=(1, 2))
+    if ok.any():
+        # Batched LAPACK outside numba: same solver for every point, and no slow numba linalg compile.
+        evals, evecs = np.linalg.eigh(cov[ok])
+        good = np.isfinite(evals).all(axis=1)
+        idx = np.flatnonzero(ok)[good]
+        axes_x[idx] = evecs[good, :, 2]
+        axes_z[idx] = evecs[good, :, 0]
+    return _orient(points, centres, nb.offsets, nb.indices, axes_x, axes_z)

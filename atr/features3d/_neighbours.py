@@ -96,6 +96,27 @@ def _visit(
     return count
 
 
+@numba.njit(cache=True)
+def _sort_by_distance(idx: np.ndarray, d2: np.ndarray) -> None:
+    """In-place Shell sort by the total order (distance, index); compiles much faster than np.argsort."""
+    n = idx.shape[0]
+    gap = 1
+    while gap < n // 3:
+        gap = 3 * gap + 1
+    while gap >= 1:
+        for t in range(gap, n):
+            ki = idx[t]
+            kd = d2[t]
+            u = t
+            while u >= gap and (d2[u - gap] > kd or (d2[u - gap] == kd and idx[u - gap] > ki)):
+                idx[u] = idx[u - gap]
+                d2[u] = d2[u - gap]
+                u -= gap
+            idx[u] = ki
+            d2[u] = kd
+        gap //= 3
+
+
 @numba.njit(cache=True, parallel=True)
 def _search(surface, order, unique_keys, starts, origin, dims, cell, queries, r2, sort):
     k = queries.shape[0]
@@ -120,15 +141,7 @@ def _search(surface, order, unique_keys, starts, origin, dims, cell, queries, r2
             indices[a:b], sq_dists[a:b], True,
         )
         if sort and b - a > 1:
-            # Sort by (distance, index): deterministic whatever the grid layout.
-            idx_part = indices[a:b].copy()
-            d_part = sq_dists[a:b].copy()
-            perm = np.argsort(idx_part, kind="mergesort")
-            idx_part = idx_part[perm]
-            d_part = d_part[perm]
-            perm2 = np.argsort(d_part, kind="mergesort")
-            indices[a:b] = idx_part[perm2]
-            sq_dists[a:b] = d_part[perm2]
+            _sort_by_distance(indices[a:b], sq_dists[a:b])
     return offsets, indices, sq_dists
 
 

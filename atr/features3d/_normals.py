@@ -99,9 +99,7 @@ def estimate_normals_and_curvature(
             counts = np.zeros(n, dtype=np.int64)
             counts[idx_f] = kk
             offsets = np.concatenate([[0], np.cumsum(counts)])
-            indices = np.empty(offsets[-1], dtype=np.int64)
-            for r, i in enumerate(idx_f):  # rows are in index order, so this is a reshape
-                indices[offsets[i] : offsets[i + 1]] = nn[r]
+            indices = nn.reshape(-1).astype(np.int64)  # rows of idx_f are in index order
             nb = Neighbourhoods(offsets, indices, np.empty(0))
     normals, curvature = _plane_fit(points, nb, config.min_neighbours)
     normals[~finite] = np.nan
