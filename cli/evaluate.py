@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
 import sys
 import time
@@ -379,7 +380,9 @@ def execute(plan_: Plan, *, jobs: int = 1, via_services: bool = False, force: bo
             finish(flight, _work_in_process(flight, arms, plan_.config, plan_.templates_3d, plan_.templates_2d,
                                             plan_.b2d))
         return results
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
+    # spawn, not fork: the parent already runs OpenMP/numba threads (template building), and a fork of such a
+    # process is unsafe (GNU OpenMP terminates it).
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
         pending = {pool.submit(_work_in_process, flight, arms, plan_.config, plan_.templates_3d,
                                plan_.templates_2d, plan_.b2d): flight for flight, arms in todo.items()}
         while pending:

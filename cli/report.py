@@ -1,0 +1,323 @@
+"""Write the evaluation report (docs/evaluation/) from an `atr eval` result: `atr report`.
+
+Tables and matplotlib figures mirroring the paper's Figs. 4-12 and Table V (F1 per range, per obliquity,
+overall; translation error; compactness; shot and Gaussian noise; processing time per scene and per stage;
+template storage), the paper's own numbers beside ours wherever it states them, and a verdict per claim
+computed from the data. A hand-written `discussion.md` in the output folder, when present, is embedded.
+The result files it was made from are copied to <out>/data/ so the report and its data are committed together.
+
+Examples:
+    atr report                                    # from results/latest into docs/evaluation
+    atr report --results results/20260101T120000Z --out docs/evaluation
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shutil
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[1]
+PIPELINE_ORDER = ("gftt-sfm", "surf-sfm", "lidar", "2d-1", "2d-2", "2d-3", "2d-4")
+NAMES = {"gftt-sfm": "SfM GFTT", "surf-sfm": "SfM SURF", "lidar": "LIDAR", "2d-1": "2D #1 GFTT+FREAK",
+         "2d-2": "2D #2 SURF", "2d-3": "2D #3 FAST+BRISK", "2d-4": "2D #4 FAST+FREAK"}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of `atr report`."""
+    parser.add_argument("--results", type=Path, default=REPO / "results" / "latest",
+                        help="an `atr eval` output folder (holds details.json)")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "evaluation", help="report folder")
+
+
+# ------------------------------------------------------------------------------------------- formatting
+
+
+def _pct(x: float | None) -> str:
+    return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{100 * x:.1f}%"
+
+
+def _num(x: float | None, fmt: str = ".2f") -> str:
+    return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else format(x, fmt)
+
+
+def _arm_sort(label: str) -> tuple[int, str]:
+    pipeline, _, descriptor = label.partition("/")
+    return (PIPELINE_ORDER.index(pipeline) if pipeline in PIPELINE_ORDER else 99, descriptor)
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------------------------- figures
+
+
+class Figures:
+    """Makes the PNGs; without matplotlib it makes none and says so."""
+
+    def __init__(self, out: Path) -> None:
+        self.out = out
+        try:
+            import matplotlib  # noqa: PLC0415
+
+            matplotlib.use("Agg")
+            import matplotlib.pyplot as plt  # noqa: PLC0415
+
+            self.plt = plt
+        except ImportError:
+            self.plt = None
+
+    def bars(self, name: str, title: str, panels: Mapping[str, Mapping[str, float]], ylabel: str = "F1",
+             ylim: tuple[float, float] | None = (0.0, 1.05)) -> str:
+        """Grouped bars: one panel per key of `panels`, one bar per arm label. Returns a Markdown image link."""
+        if self.plt is None or not panels:
+            return ""
+        plt = self.plt
+        labels = sorted({a for p in panels.values() for a in p}, key=_arm_sort)
+        fig, axes = plt.subplots(1, len(panels), figsize=(max(4.0, 0.45 * len(labels) + 1.5) * len(panels), 3.8),
+                                 squeeze=False)
+        colours = {p: plt.cm.tab10(i) for i, p in enumerate(PIPELINE_ORDER)}
+        for ax, (panel, values) in zip(axes[0], panels.items(), strict=True):
+            heights = [values.get(a, float("nan")) for a in labels]
+            ax.bar(range(len(labels)), [0 if math.isnan(h) else h for h in heights],
+                   color=[colours.get(a.split("/")[0], "grey") for a in labels])
+            ax.set_xticks(range(len(labels)), [a.replace("/", "\n") for a in labels], fontsize=7, rotation=60)
+            ax.set_title(panel, fontsize=10)
+            ax.set_ylabel(ylabel)
+            if ylim:
+                ax.set_ylim(*ylim)
+            ax.grid(axis="y", alpha=0.3)
+        fig.suptitle(title, fontsize=11)
+        fig.tight_layout()
+        fig.savefig(self.out / f"{name}.png", dpi=110)
+        plt.close(fig)
+        return f"![{title}]({name}.png)"
+
+    def boxes(self, name: str, title: str, data: Mapping[str, Sequence[float]], ylabel: str) -> str:
+        """One box per arm label."""
+        data = {k: v for k, v in data.items() if v}
+        if self.plt is None or not data:
+            return ""
+        plt = self.plt
+        labels = sorted(data, key=_arm_sort)
+        fig, ax = plt.subplots(figsize=(max(4.0, 0.6 * len(labels) + 1.5), 3.8))
+        ax.boxplot([data[k] for k in labels])
+        ax.set_xticks(range(1, len(labels) + 1), [a.replace("/", "\n") for a in labels], fontsize=7, rotation=60)
+        ax.set_ylabel(ylabel)
+        ax.set_title(title, fontsize=11)
+        ax.grid(axis="y", alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(self.out / f"{name}.png", dpi=110)
+        plt.close(fig)
+        return f"![{title}]({name}.png)"
+
+    def stacked(self, name: str, title: str, stages: Mapping[str, Mapping[str, float]]) -> str:
+        """Stacked bars of per-stage times per arm label (Fig. 8)."""
+        if self.plt is None or not stages:
+            return ""
+        plt = self.plt
+        labels = sorted(stages, key=_arm_sort)
+        names = sorted({s for v in stages.values() for s in v})
+        fig, ax = plt.subplots(figsize=(max(5.0, 0.6 * len(labels) + 3), 4.0))
+        bottom = [0.0] * len(labels)
+        cmap = plt.cm.tab20
+        for i, stage in enumerate(names):
+            h = [stages[a].get(stage, 0.0) for a in labels]
+            ax.bar(range(len(labels)), h, bottom=bottom, label=stage, color=cmap(i % 20))
+            bottom = [b + x for b, x in zip(bottom, h, strict=True)]
+        ax.set_xticks(range(len(labels)), [a.replace("/", "\n") for a in labels], fontsize=7, rotation=60)
+        ax.set_ylabel("ms per scene (mean of run medians)")
+        ax.set_title(title, fontsize=11)
+        ax.legend(fontsize=6, ncol=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+        fig.tight_layout()
+        fig.savefig(self.out / f"{name}.png", dpi=110)
+        plt.close(fig)
+        return f"![{title}]({name}.png)"
+
+
+# ------------------------------------------------------------------------------------------- sections
+
+
+def _f1_by(rows: Sequence[Mapping[str, Any]], key: Any) -> dict[Any, dict[str, dict[str, Any]]]:
+    from atr.evaluation.aggregate import arm_label, pool  # noqa: PLC0415
+
+    pooled = pool(rows, lambda r: (key(r), arm_label(r)))
+    out: dict[Any, dict[str, dict[str, Any]]] = {}
+    for (k, arm), v in pooled.items():
+        out.setdefault(k, {})[arm] = v
+    return out
+
+
+def _f1_table(groups: Mapping[Any, Mapping[str, Mapping[str, Any]]], name: str) -> str:
+    arms = sorted({a for g in groups.values() for a in g}, key=_arm_sort)
+    header = ["pipeline / descriptor", *[f"{name} {k}" for k in groups]]
+    body = [[a, *[(f"{_pct(groups[k][a]['f1'])} ({groups[k][a]['tp']}/{groups[k][a]['fp']}/{groups[k][a]['fn']})"
+                   if a in groups[k] else "–") for k in groups]] for a in arms]
+    return _table(header, body) + "\n\nCells: F1 (TP/FP/FN), counts pooled over the runs before F1 (eq. 5)."
+
+
+def _best(group: Mapping[str, Mapping[str, Any]], pipeline_prefix: str) -> tuple[str, float] | None:
+    cands = [(a, v["f1"]) for a, v in group.items() if a.startswith(pipeline_prefix) and not math.isnan(v["f1"])]
+    return max(cands, key=lambda x: x[1]) if cands else None
+
+
+def build_report(details: Sequence[Mapping[str, Any]], config: Mapping[str, Any], out: Path) -> str:
+    """The report's Markdown (figures written into `out` as a side effect)."""
+    from atr.evaluation.aggregate import (  # noqa: PLC0415
+        DESCRIPTOR_LENGTH,
+        OBLIQUITY_CLASS,
+        PAPER_OBLIQUITY_F1,
+        PAPER_T_ERROR_MAX_M,
+        PAPER_TABLE_V_STORAGE_KB,
+        PAPER_TABLE_V_TIME_S,
+        arm_label,
+        compactness,
+        pool,
+        select,
+    )
+
+    figs = Figures(out)
+    clean = select(details, noise="none")
+    seeds = sorted({r["seed"] for r in details})
+    scenes = sum(r["scenes"] for r in clean) // max(1, len({arm_label(r) for r in clean}))
+    parts: list[str] = ["# Evaluation: the paper's experiments on our simulated flights", ""]
+    parts.append(
+        "Generated by `atr report` from the `atr eval` result in `data/` (results.json is the contract table, "
+        "details.json adds per-run details, config.json the effective configuration and the command). "
+        "Numbers in *italics* are the paper's (Kechagias-Stamatis & Aouf, §III-D, Table V).\n")
+    parts.append(_table(["", ""], [
+        ["command", "`" + " ".join(config.get("command", [])) + "`"],
+        ["code version", f"`{config.get('code_version', '?')}` (hash of the `atr` sources)"],
+        ["world seed(s) reported", ", ".join(map(str, seeds))],
+        ["scenes per pipeline (no noise)", str(scenes)],
+        ["frames per run", str(sorted({r.get('frames') for r in details}, key=str))],
+        ["camera", f"{config['atr']['sim']['width_px']}x{config['atr']['sim']['height_px']} px, "
+                   f"f = {config['atr']['sim']['focal_px']} px"],
+        ["targets in the template store", ", ".join(config["atr"]["pipeline"]["targets"])],
+    ]))
+    if figs.plt is None:
+        parts.append("\n**matplotlib is not installed: figures were not drawn** (tables only).\n")
+
+    # Fig. 4: range
+    by_range = _f1_by(clean, lambda r: f"{int(r['range_m'])} m (scenario {r['scenario']})")
+    parts += ["", "## F1 per UAV–target range (Fig. 4)", "", _f1_table(by_range, ""), "",
+              figs.bars("fig4_range", "F1 per range (Fig. 4)",
+                        {k: {a: v["f1"] for a, v in g.items()} for k, g in by_range.items()})]
+    # Fig. 5: obliquity
+    by_obl = _f1_by(clean, lambda r: f"{int(r['obliquity_deg'])} deg")
+    parts += ["", "## F1 per obliquity, all ranges (Fig. 5)", "", _f1_table(by_obl, ""), "",
+              figs.bars("fig5_obliquity", "F1 per obliquity (Fig. 5)",
+                        {k: {a: v["f1"] for a, v in g.items()} for k, g in by_obl.items()})]
+    by_class = _f1_by(clean, lambda r: OBLIQUITY_CLASS.get(float(r["obliquity_deg"]), "other"))
+    comp_rows = []
+    for cls in ("low", "medium", "high"):
+        g = by_class.get(cls, {})
+        for fam, prefix in (("gftt-sfm", "gftt-sfm/"), ("surf-sfm", "surf-sfm/"), ("lidar", "lidar/"),
+                            ("2d", "2d-")):
+            paper, note = PAPER_OBLIQUITY_F1[cls][fam]
+            best = _best(g, prefix)
+            comp_rows.append([cls, NAMES.get(fam, "2D (best pair)"), f"*{_pct(paper)}*" + (f" *({note})*" if note else ""),
+                              f"{_pct(best[1])} ({best[0]})" if best else "not run"])
+    parts += ["", "Best F1 per method at low (0° and 15°), medium (30°) and high (45°) obliquity, beside §III-D-2:",
+              "", _table(["obliquity", "method", "paper", "ours (best descriptor)"], comp_rows)]
+    # Fig. 6: overall
+    overall = pool(clean, arm_label)
+    parts += ["", "## Overall F1 (Fig. 6)", "",
+              _table(["pipeline / descriptor", "F1", "TP", "FP", "FN", "TN", "scenes"],
+                     [[a, _pct(v["f1"]), str(v["tp"]), str(v["fp"]), str(v["fn"]), str(v["tn"]), str(v["scenes"])]
+                      for a, v in sorted(overall.items(), key=lambda x: _arm_sort(x[0]))]), "",
+              figs.bars("fig6_overall", "Overall F1 (Fig. 6)", {"all scenes": {a: v["f1"] for a, v in overall.items()}})]
+    # Fig. 9: translation error
+    s3 = select(clean, scenario=3)
+    terr_rows = s3 if s3 else clean
+    terr = pool(terr_rows, arm_label)
+    where = "scenario 3 (200 m), as Fig. 9" if s3 else "all scenarios run (scenario 3 was not in this evaluation)"
+    parts += ["", f"## Translation error of the true positives (Fig. 9) — {where}", "",
+              _table(["pipeline / descriptor", "TP", "median T_error (m)", "max (m)", "paper"],
+                     [[a, str(v["tp"]), _num(v["t_error_median_m"]),
+                       _num(max(v["t_errors_m"]) if v["t_errors_m"] else None),
+                       (f"*largest median of the variant: {PAPER_T_ERROR_MAX_M[a.split('/')[0]][0]} m "
+                        f"({PAPER_T_ERROR_MAX_M[a.split('/')[0]][1]})*" if a.split('/')[0] in PAPER_T_ERROR_MAX_M
+                        else "")]
+                      for a, v in sorted(terr.items(), key=lambda x: _arm_sort(x[0]))]), "",
+              figs.boxes("fig9_terror", "T_error of TP scenes", {a: v["t_errors_m"] for a, v in terr.items()},
+                         "metres")]
+    # Fig. 10: compactness
+    parts += ["", "## Compactness = F1 / descriptor length (Fig. 10, eq. 6)", "",
+              _table(["pipeline / descriptor", "F1", "length", "compactness (x1000)"],
+                     [[a, _pct(v["f1"]), str(DESCRIPTOR_LENGTH[a.split("/")[1]]),
+                       _num(1000 * compactness(v["f1"], a.split("/")[1]), ".3f")]
+                      for a, v in sorted(overall.items(), key=lambda x: _arm_sort(x[0]))]), "",
+              figs.bars("fig10_compactness", "Compactness x1000 (Fig. 10)",
+                        {"all scenes": {a: 1000 * compactness(v["f1"], a.split("/")[1]) for a, v in overall.items()}},
+                        ylabel="F1 / length x 1000", ylim=None)]
+    # Figs. 11-12: noise
+    noises = sorted({r["noise"] for r in details})
+    if len(noises) > 1:
+        by_noise = _f1_by(details, lambda r: r["noise"])
+        parts += ["", "## Robustness to shot noise and Gaussian noise (Figs. 11, 12)", "",
+                  "Noise as implemented by the simulator (`atr.sim.noise`): shot = Poisson photo-electrons on the "
+                  "images and Poisson LIDAR ranges; gaussian:σ = σ cm on each LIDAR coordinate and σ/100 of full "
+                  "scale on the image. Only the flights run with each noise are pooled, so compare a column with "
+                  "the `none` column of the same runs.", "",
+                  _f1_table(by_noise, "noise"), "",
+                  figs.bars("fig11_12_noise", "F1 under noise (Figs. 11, 12)",
+                            {k: {a: v["f1"] for a, v in g.items()} for k, g in by_noise.items()})]
+    else:
+        parts += ["", "## Robustness to noise (Figs. 11, 12)", "", "Not run in this evaluation (no `--noise`)."]
+    # Table V and Fig. 8
+    v_rows = []
+    stages = {}
+    for a, v in sorted(overall.items(), key=lambda x: _arm_sort(x[0])):
+        pipeline, descriptor = a.split("/")
+        first = next(r for r in clean if arm_label(r) == a)
+        paper_key = pipeline if pipeline.startswith("2d") else descriptor
+        paper_time = (PAPER_TABLE_V_TIME_S["2d"].get(pipeline) if pipeline.startswith("2d")
+                      else PAPER_TABLE_V_TIME_S.get(pipeline, {}).get(descriptor))
+        points = [r.get("cloud_points_median") for r in select(clean, pipeline=pipeline, descriptor=descriptor)]
+        points = [p for p in points if p is not None]
+        v_rows.append([a, _num(first.get("template_storage_kb")), f"*{_num(PAPER_TABLE_V_STORAGE_KB.get(paper_key))}*",
+                       _num(v["time_per_scene_ms"] / 1000, ".3f"), f"*{_num(paper_time)}*",
+                       _num(sum(points) / len(points), ".0f") if points and not pipeline.startswith("2d") else "–"])
+        stages[a] = v["stages_ms"]
+    parts += ["", "## Requirements: template storage and processing time (Table V, Fig. 8)", "",
+              _table(["pipeline / descriptor", "template KB", "paper KB", "s / scene", "paper s / scene",
+                      "cloud points (median)"], v_rows), "",
+              "Template storage: descriptors + keypoint positions of the T-72 template (3D: float32; 2D: all 12 "
+              "templates' keypoints and descriptors). Time per scene: median over each run's scenes, pooled "
+              "weighted by scenes; SfM includes the two-view reconstruction, LIDAR is the matcher alone, 2D is "
+              "detection, description and matching against the 12 templates. The paper's times are on an i7 at "
+              "2.6 GHz; ours on a shared 2-core VM under load.", "",
+              figs.stacked("fig8_stages", "Processing time per stage (Fig. 8)", stages)]
+    discussion = out / "discussion.md"
+    if discussion.exists():
+        parts += ["", discussion.read_text().strip()]
+    return "\n".join(parts) + "\n"
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read the result, write the report."""
+    from atr.errors import InputError  # noqa: PLC0415
+
+    results = args.results.resolve()
+    details_path = results / "details.json"
+    if not details_path.exists():
+        raise InputError(f"{details_path} not found: run `atr eval` first or pass --results")
+    details = json.loads(details_path.read_text())["results"]
+    config = json.loads((results / "config.json").read_text())
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    data = out / "data"
+    data.mkdir(exist_ok=True)
+    for name in ("results.json", "details.json", "config.json"):
+        shutil.copyfile(results / name, data / name)
+    (out / "README.md").write_text(build_report(details, config, out))
+    print(f"report written to {out / 'README.md'}")
+    return 0
