@@ -295,3 +295,54 @@ def test_flight_over_impaired_link(split: Split) -> None:
         split.hosts.rate_limit(None)
         split.link.start()
         split.wait_ready(120)
+
+
+def _child_pid(parent: int, service: str) -> int:
+    """The pid of the `atr service SERVICE` process a launcher started."""
+    for task in Path(f"/proc/{parent}/task").iterdir():
+        for pid in (task / "children").read_text().split():
+            command = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+            if b"service" in command and command[command.index(b"service") + 1] == service.encode():
+                return int(pid)
+    raise LookupError(f"no {service} process under {parent}")
+
+
+def test_ground_router_restart_mid_flight(split: Split) -> None:
+    """SIGKILL the ground router after two answered frames; the launcher restarts it, every client redials.
+
+    Zenoh keeps no data for a route that is down: what the air publishes during the outage is lost. The
+    pipeline says so: the sensor source reports each unanswered frame on its errors key (and counts it in its
+    Status), the recorder reports the sequence gaps it saw; the flight goes on and its last frames are answered.
+    """
+    frames, start = 6, time.time_ns()
+    outage: dict[str, int] = {}
+
+    def restart_router() -> None:
+        answered = split.watch.wait_for(lambda events: sum(
+            1 for e in events if e["key"] == keys.detections(UAV) and e["t_ns"] >= start) >= 2, 300)
+        assert answered, "no two frames answered before the restart"
+        router = _child_pid(split.ground.pid, "router")
+        outage["killed_ns"] = time.time_ns()
+        os.kill(router, 9)
+
+    first, end, code = split.fly(frames, answer_timeout_s=15, during=restart_router)
+    assert code == 0, (split.folder / "source.log").read_text()[-3000:]
+    events = split.watch.since(first)
+    images = sorted({e["stamp_ns"] for e in events if e["key"] == keys.image(UAV)})
+    assert len(images) == frames
+    records = split.recorded(first, end)
+    answered = {s for s, per_key in _frames(records).items() if keys.detections(UAV) in per_key}
+    lost = {e.get("input_stamp_ns") for e in events if e["key"] == f"atr/{UAV}/sensor_source/errors"}
+    assert set(images) <= answered | lost, f"frames neither answered nor reported lost: {set(images) - answered - lost}"
+    assert images[-1] in answered, "the pipeline did not resume after the router restart"
+    statuses = [e for e in events if e["key"] == f"atr/{UAV}/sensor_source/status" and e.get("counters")]
+    assert statuses and statuses[-1]["counters"]["errors"] >= len(lost & set(images))
+    recorder_errors = [codec.unpack(d) for t, _, d in records if t == f"atr/{UAV}/recorder/errors"]
+    resumed = min((e["t_ns"] for e in events if e["key"] == keys.detections(UAV) and e["t_ns"] > outage["killed_ns"]),
+                  default=None)
+    split.figures["restart"] = {
+        "frames": frames, "answered": len(answered & set(images)), "reported_lost": len(lost & set(images)),
+        "sensor_source_error_count": statuses[-1]["counters"]["errors"],
+        "recorder_gap_reports": [e["reason"] for e in recorder_errors][:10],
+        "first_answer_after_kill_s": round((resumed - outage["killed_ns"]) / 1e9, 1) if resumed else None,
+    }
