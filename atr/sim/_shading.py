@@ -156,9 +156,7 @@ def _mix(a: float, b: float, t: float) -> float:
 
 @numba.njit(cache=True)
 def _ground_class(x: float, y: float, rects: np.ndarray, fp: float, seed: int) -> int:
-    cls = M.GRASS
-    if fbm2(x, y, 25.0, 3, fp, seed + 7) > 0.64:
-        cls = M.DIRT
+    cls = -1
     for k in range(rects.shape[0]):
         dx = x - rects[k, 0]
         dy = y - rects[k, 1]
@@ -168,6 +166,8 @@ def _ground_class(x: float, y: float, rects: np.ndarray, fp: float, seed: int) -
             cls = int(rects[k, 6])
             if rects[k, 7] > 0 and abs(v) < 0.07 and (u / 6.0 - np.floor(u / 6.0)) < 0.5:
                 cls = M.PAINT_WHITE  # dashed centre line
+    if cls < 0:  # open ground: grass with patches of bare dirt
+        cls = M.DIRT if fbm2(x, y, 25.0, 3, fp, seed + 7) > 0.64 else M.GRASS
     return cls
 
 
@@ -189,7 +189,7 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
     if mat == M.GRASS:
         patch = fbm2(u, v, 7.0, 3, fp, s)
         fine = fbm2(u, v, 0.5, 6, fp, s + 1, 0.8)
-        blade = fbm2(u, v, 0.06, 3, fp, s + 2, 0.9)
+        blade = fbm2(u, v, 0.06, 2, fp, s + 2, 0.9)
         k = (0.35 + 1.3 * fine) * (0.7 + 0.6 * patch) * (0.6 + 0.8 * blade)
         dry = min(max((patch - 0.55) * 4.0, 0.0), 1.0)
         r = _mix(0.075, 0.19, dry) * k
@@ -263,7 +263,7 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
         k = 0.6 + 0.8 * fbm2(u * 4.0, v * 0.5, 0.5, 4, fp, s)
         r, g, b = 0.10 * k, 0.075 * k, 0.055 * k
     elif mat == M.CAMO:
-        blob = fbm2(u, v, 2.2, 3, fp * 0.5, s)
+        blob = fbm(x, y, z, 2.2, 3, fp * 0.5, s)  # solid noise: no seams across the curved turret
         grime = 0.6 + 0.8 * fbm2(u, v, 0.3, 5, fp, s + 2, 0.75)
         if blob < 0.42:
             r, g, b = 0.13, 0.085, 0.045
@@ -317,7 +317,7 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
     # micro detail: grain a few centimetres across, strong on rough materials; it fades out with range
     rough = _ROUGHNESS[mat] if mat < _ROUGHNESS.shape[0] else 0.3
     if rough > 0.0:
-        d = 2.0 * fbm2(u, v, 0.12, 4, fp, s + 11, 0.9) - 1.0
+        d = 2.0 * fbm2(u, v, 0.12, 3, fp, s + 11, 0.9) - 1.0
         k = max(0.15, 1.0 + 2.2 * rough * d)
         r *= k
         g *= k

@@ -352,15 +352,15 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
             v1 = offset[1] + (bv + 1) * spacing[1] - 0.5 * widths[1] - _SIDEWALK_M - 1.0
             if rng.random() < 0.15:  # a park block: only trees
                 continue
-            nu, nv = int(rng.integers(1, 3)), int(rng.integers(1, 3))
+            nu, nv = int(rng.integers(1, 4)), int(rng.integers(1, 4))
             for iu in range(nu):
                 for iv in range(nv):
                     lu0 = u0 + (u1 - u0) * iu / nu
                     lu1 = u0 + (u1 - u0) * (iu + 1) / nu
                     lv0 = v0 + (v1 - v0) * iv / nv
                     lv1 = v0 + (v1 - v0) * (iv + 1) / nv
-                    fu = (lu1 - lu0) * rng.uniform(0.55, 0.9)
-                    fv = (lv1 - lv0) * rng.uniform(0.55, 0.9)
+                    fu = (lu1 - lu0) * rng.uniform(0.6, 0.92)
+                    fv = (lv1 - lv0) * rng.uniform(0.6, 0.92)
                     cu = lu0 + 0.5 * (lu1 - lu0) + rng.uniform(-0.5, 0.5) * (lu1 - lu0 - fu)
                     cv = lv0 + 0.5 * (lv1 - lv0) + rng.uniform(-0.5, 0.5) * (lv1 - lv0 - fv)
                     x, y = to_world @ np.array([cu, cv])
@@ -376,14 +376,15 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
     # --- trees along sidewalks and in open places ----------------------------------------------------
     n_trees = 0
     attempts = 0
-    while n_trees < 220 and attempts < 3000:
+    while n_trees < 320 and attempts < 5000:
         attempts += 1
         x, y = rng.uniform(-_CITY_HALF_M, _CITY_HALF_M, 2)
         du, dv = street_dist(x, y)
         along = (0 < du < _SIDEWALK_M + 2.0) or (0 < dv < _SIDEWALK_M + 2.0)
         if du < 0 or dv < 0:
             continue  # on the carriageway
-        if not along and rng.random() < 0.6:
+        near = np.hypot(x - target_xy[0], y - target_xy[1]) < 150.0
+        if not along and rng.random() < (0.3 if near else 0.7):
             continue
         h = rng.uniform(5.0, 13.0)
         r = 0.3 * h
@@ -405,7 +406,7 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
         if keep.flyable(x, y, 0.5 * length, h) and free(x, y, 0.5 * length):
             add(wall, x, y, yaw, 0.5 * length, h, "wall")
     # --- parked cars along the kerbs -------------------------------------------------------------------
-    for _ in range(160):
+    for _ in range(400):
         x, y = rng.uniform(-_CITY_HALF_M, _CITY_HALF_M, 2)
         du, dv = street_dist(x, y)
         if -1.6 < dv < -0.8:
