@@ -32,6 +32,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "service": ("service", "run one service by name (what the layouts start)"),
     "eval": ("evaluate", "run the paper's experiments and score them"),
     "report": ("report", "write the evaluation report to docs/evaluation"),
+    "certs": ("certs", "make a deployment's TLS certificates"),
 }
 
 
