@@ -13,11 +13,13 @@ from cli.main import build_parser
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 # Small and quick, the same physics: a 640x480 camera with half the focal length, one target template.
-# Scenario 1 run 4 (45 deg) with FPFH: the in-process run recognises the T-72 in these frames, so the
-# comparison covers non-empty detections, not only empty ones.
+# Scenario 1 run 4 (45 deg) with FPFH. The acceptance thresholds are loosened so that these frames give
+# several detections (most of them false): the comparison must cover non-empty detections, not only empty ones.
 ARGS = ["eval", "--scenario", "1", "--run", "4", "--frames", "3", "--pipeline", "gftt-sfm", "--descriptor", "fpfh",
         "--set", "sim.width_px=640", "--set", "sim.height_px=480", "--set", "sim.focal_px=1000",
-        "--set", "pipeline.targets=[t72]"]
+        "--set", "pipeline.targets=[t72]", "--set", "recognition.min_overlap=0.05",
+        "--set", "recognition.min_overlap_vertices=3", "--set", "recognition.max_clutter=1.0",
+        "--set", "recognition.min_group_size=3"]
 
 
 def evaluate(results, via_services: bool):
@@ -35,6 +37,7 @@ def test_in_process_and_service_graph_give_identical_detections(tmp_path):
     bus = evaluate(tmp_path / "bus", via_services=True)
     assert [r.frame for r in local] == [r.frame for r in bus] == [1, 2]
     assert all(r.error is None for r in local + bus)
+    assert sum(len(r.detections) for r in local) > 0
     for a, b in zip(local, bus, strict=True):
         assert a.stamp_ns == b.stamp_ns
         assert a.truth == b.truth
