@@ -274,7 +274,8 @@ def _int_field(message: dict[Any, Any], name: str) -> int:
 
 
 class RecorderNode(Node):
-    """A `Node` whose Status counters also carry the recorder's figures (messages, bytes, channels, gaps)."""
+    """A `Node` whose Status also carries the recorder's figures: counters messages, bytes, channels, gaps,
+    queue_max, unstamped; handled_by_key = messages recorded per topic."""
 
     recorder: Recorder | None = None
 
@@ -310,8 +311,19 @@ class RecorderNode(Node):
                 "state": state,
                 "uptime_s": time.monotonic() - self._started,
                 "counters": counters,
+                "handled_by_key": self._by_topic(),
             },
         )
+
+    def _by_topic(self) -> dict[str, int]:
+        if self.recorder is None:
+            return {}
+        for _ in range(3):  # the writer thread may add a topic while we copy
+            try:
+                return dict(self.recorder.stats.by_topic)
+            except RuntimeError:
+                continue
+        return {}
 
 
 def run_recorder(
