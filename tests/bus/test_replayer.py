@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import signal
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -14,7 +15,7 @@ from bus.replayer import Replayer, is_input_topic
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _procs import Watcher, atr, finish, helper  # noqa: E402
-from conftest import peer_config  # noqa: E402
+from conftest import peer_config, start_hub, stop_process  # noqa: E402
 
 pytestmark = pytest.mark.e2e
 
@@ -40,9 +41,19 @@ def _record(hub: str, watcher: Watcher, out: Path, *during: list[str]) -> None:
     assert mcap_tools.check(out) == []
 
 
-@pytest.fixture
-def original(hub: str, tmp_path: Path) -> Path:
-    out = tmp_path / "original.mcap"
+@pytest.fixture(scope="module")
+def hub() -> Iterator[str]:
+    """One hub for this module's tests (they run one after the other and share the original recording)."""
+    proc, endpoint = start_hub()
+    try:
+        yield endpoint
+    finally:
+        stop_process(proc)
+
+
+@pytest.fixture(scope="module")
+def original(hub: str, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("original") / "original.mcap"
     watcher = Watcher(hub)
     try:
         _record(hub, watcher, out, ["helper", "publish", "--frames", "6", "--seed", "4"])
@@ -71,7 +82,7 @@ def test_replayed_inputs_are_byte_identical(hub: str, tmp_path: Path, original: 
 
 def test_recorded_rate_keeps_the_spacing(hub: str, original: Path) -> None:
     # In-process use (as `atr run` does): replay at 4x and measure the wall time against the recorded span.
-    span_s = mcap_tools.info(original)
+    info = mcap_tools.info(original)
     stamps = [m.log_time for t, m in _messages(original) if is_input_topic(t)]
     recorded_s = (stamps[-1] - stamps[0]) / 1e9
     from bus.session import open_session
@@ -82,7 +93,7 @@ def test_recorded_rate_keeps_the_spacing(hub: str, original: Path) -> None:
             stats = replayer.recorded(rate=4.0)
     finally:
         session.close()
-    assert stats.published == len(stamps) and span_s.messages > len(stamps)
+    assert stats.published == len(stamps) and info.messages > len(stamps)
     assert recorded_s / 4 * 0.9 <= stats.wall_s <= recorded_s / 4 + 0.5
 
 
