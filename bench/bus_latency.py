@@ -1,15 +1,15 @@
 """One-way latency between two processes: our codec + Node versus a raw Zenoh put of the same bytes.
 
-Topology as in compose/local: a hub peer on loopback, a sender (this process) and a receiver process, both
-peers that dial the hub. Messages:
+Topology as in compose/local: a hub peer on loopback, a sender (this process) and a receiver
+process, both peers that dial the hub. Messages:
   - ~1 KB: an ImuBatch of 10 samples on atr/bench/imu;
   - 3.7 MB: a 1280x960 RGB Image on atr/bench/camera/image.
-"node": the sender calls Node.publish (schema validation + encode + put) with stamp_ns = time.time_ns() taken
-just before; the receiver takes the time when Node.events() yields the decoded, validated message.
-"raw": session.put of the same encoded bytes with the send time in the attachment; the receiver takes the time in
-the Zenoh callback after `payload.to_bytes()`.
-Both clocks are the host's CLOCK_REALTIME. Raw and node messages alternate; figures are medians over rounds of
-each round's p50/p99. Paced sends (latency, not throughput).
+"node": the sender calls Node.publish (schema validation + encode + put) with stamp_ns =
+time.time_ns() taken just before; the receiver takes the time when Node.events() yields the decoded,
+validated message. "raw": session.put of the same encoded bytes with the send time in the
+attachment; the receiver takes the time in the Zenoh callback after `payload.to_bytes()`. Both
+clocks are the host's CLOCK_REALTIME. Raw and node messages alternate; figures are medians over
+rounds of each round's p50/p99. Paced sends (latency, not throughput).
 
 Run: ./dev bench bus_latency [--rounds 3]
 """
@@ -50,7 +50,8 @@ def bus_env(hub: str) -> dict[str, str]:
 
 
 def start_hub() -> tuple[subprocess.Popen[bytes], str]:
-    """A hub peer (services/router) on a free loopback port; returns the process and its endpoint."""
+    """A hub peer (services/router) on a free loopback port; returns the process and its
+    endpoint."""
     port = free_port()
     hub = f"tcp/127.0.0.1:{port}"
     proc = subprocess.Popen(
@@ -91,7 +92,8 @@ def receiver() -> int:
         out.write(f"{sample.key_expr} {time.time_ns() - sent}\n")
         out.flush()
 
-    # Breakdown of the node path: also note when Zenoh's callback has the bytes (before the queue hop).
+    # Breakdown of the node path: also note when Zenoh's callback has the bytes (before the queue
+    # hop).
     original_on_sample = Node._on_sample
 
     def on_sample(self, sample) -> None:  # noqa: ANN001

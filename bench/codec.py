@@ -2,8 +2,8 @@
 
 For each message (1280x960 RGB Image, 20k-point PointCloud, 200-sample ImuBatch):
   - bus.codec.encode (schema validation + msgpack with the ndarray extension) and bus.codec.decode;
-  - reference in the same run: a plain copy of the same payload bytes (`bytes(memoryview)`), the floor of any
-    encoder that must produce one contiguous buffer.
+  - reference in the same run: a plain copy of the same payload bytes (`bytes(memoryview)`), the
+    floor of any encoder that must produce one contiguous buffer.
 Then the recorder's ChunkedWriter on a stream of such messages: zstd level 1 (default) and 3.
 Figures: median of REPEATS runs; MB = 1e6 bytes of encoded message.
 
@@ -27,7 +27,8 @@ REPEATS = 15
 
 
 def camera_image(rng: np.random.Generator) -> np.ndarray:
-    """A 1280x960 RGB frame with smooth texture and sensor noise (compresses like a real frame, not like noise)."""
+    """A 1280x960 RGB frame with smooth texture and sensor noise (compresses like a real frame, not
+    like noise)."""
     y, x = np.mgrid[0:960, 0:1280].astype(np.float32)
     base = np.stack([(x * 0.2 + y * 0.1) % 256, 128 + 60 * np.sin(x / 40), 128 + 60 * np.cos(y / 30)], -1)
     return np.clip(base + rng.normal(0, 3, base.shape), 0, 255).astype(np.uint8)

@@ -1,16 +1,19 @@
-"""Recorder throughput with zero loss, as deployed: `atr record` in its own process, a load generator in another.
+"""Recorder throughput with zero loss, as deployed: `atr record` in its own process, a load
+generator in another.
 
-Reference load ("1x"): a 30 Hz 1280x960 RGB camera (3.7 MB frames), a 200 Hz IMU (one ImuBatch per sample) and
-one 20k-point float32 cloud per frame: about 118 MB/s and 260 messages/s. The goal is to record 2x that.
+Reference load ("1x"): a 30 Hz 1280x960 RGB camera (3.7 MB frames), a 200 Hz IMU (one ImuBatch per
+sample) and one 20k-point float32 cloud per frame: about 118 MB/s and 260 messages/s. The goal is to
+record 2x that.
 Runs:
   - paced at 1x and 2x for DURATION seconds;
   - "max": frames back to back (publishers block rather than drop) for DURATION seconds.
-The generator uses pre-encoded payloads (codec cost is bench/codec.py's business) with a fresh attachment per
-message, so the recorder sees real seq numbers and would report a gap. Images have smooth texture plus sensor
-noise (they compress like camera frames, not like random bytes).
-Figures per run: offered load (what the generator managed to send), recorded MB/s and messages/s over
-first send -> file closed (includes draining the queue), the drain time after the last send, the recorder's
-largest queue, and loss (messages sent minus messages in the file; must be 0). Median of REPEATS runs.
+The generator uses pre-encoded payloads (codec cost is bench/codec.py's business) with a fresh
+attachment per message, so the recorder sees real seq numbers and would report a gap. Images have
+smooth texture plus sensor noise (they compress like camera frames, not like random bytes).
+Figures per run: offered load (what the generator managed to send), recorded MB/s and messages/s
+over first send -> file closed (includes draining the queue), the drain time after the last send, the
+recorder's largest queue, and loss (messages sent minus messages in the file; must be 0). Median of
+REPEATS runs.
 
 Run: ./dev bench recorder [--duration 8] [--repeats 3]
 """
@@ -38,7 +41,8 @@ CAMERA_HZ, IMU_HZ = 30, 200
 
 
 def generator(factor: float, duration_s: float) -> int:
-    """Publish the load (factor x reference; 0 = frames back to back) and print what was sent as JSON."""
+    """Publish the load (factor x reference; 0 = frames back to back) and print what was sent as
+    JSON."""
     import zenoh
 
     from bus import codec, keys
@@ -191,8 +195,9 @@ def main() -> int:
 
 
 def profile(factor: float, duration_s: float, zstd_level: int) -> None:
-    """Recorder in this process with CPU timers on each stage (Zenoh's callback, the writer thread, the chunk
-    thread): MB recorded per CPU-second of each, a figure that holds on a loaded machine."""
+    """Recorder in this process with CPU timers on each stage (Zenoh's callback, the writer thread,
+    the chunk thread): MB recorded per CPU-second of each, a figure that holds on a loaded
+    machine."""
     from bus.mcap_tools import ChunkedWriter
     from bus.recorder import Recorder, RecorderConfig
     from bus.session import open_session
@@ -221,7 +226,8 @@ def profile(factor: float, duration_s: float, zstd_level: int) -> None:
         gen = subprocess.Popen([sys.executable, __file__, "--role", "generator", "--factor", str(factor),
                                 "--duration", str(duration_s)], env=bus_env(hub), cwd=REPO,
                                stdout=subprocess.PIPE, text=True)
-        # the generator waits for a recorder Status before closing; stand in for the recorder service
+        # the generator waits for a recorder Status before closing; stand in for the recorder
+        # service
         from bus import codec, keys
 
         while gen.poll() is None:

@@ -1,17 +1,20 @@
-"""MCAP files of this project: a chunked writer, and the tools behind `atr mcap` (info, check, recover).
+"""MCAP files of this project: a chunked writer, and the tools behind `atr mcap` (info, check,
+recover).
 
-The writer (`ChunkedWriter`) produces standard MCAP (readable by the `mcap` library and Foxglove): Header, then
-zstd-compressed Chunks each followed by its MessageIndex records, DataEnd, a summary section (schemas, channels,
-Statistics, ChunkIndexes, SummaryOffsets) and the Footer. Schemas and channels are written inside the chunk that
-holds their first message, so a file cut short by a crash still defines everything it contains up to its last
-complete chunk. It is our own (not `mcap.writer.Writer`) for two reasons: the zstd level is chosen (level 1 keeps
-up with two 30 Hz cameras on one core, level 3 does not) and message records are framed without going through an
-intermediate BytesIO, which halves the copies of a 3.7 MB image. Records are serialised with `mcap.records` where
-speed does not matter.
+The writer (`ChunkedWriter`) produces standard MCAP (readable by the `mcap` library and Foxglove):
+Header, then zstd-compressed Chunks each followed by its MessageIndex records, DataEnd, a summary
+section (schemas, channels, Statistics, ChunkIndexes, SummaryOffsets) and the Footer. Schemas and
+channels are written inside the chunk that holds their first message, so a file cut short by a crash
+still defines everything it contains up to its last complete chunk. It is our own (not
+`mcap.writer.Writer`, which always uses zstd level 3 in the calling thread): the zstd level is
+chosen (1 costs about half of level 3's CPU, bench/codec.py), chunks are compressed and written on
+a thread of their own, and message records are framed without an intermediate BytesIO (one copy
+less of a 3.7 MB image). Records are serialised with `mcap.records` where speed does not matter.
 
-`check(path)` walks the file record by record with `mcap.stream_reader.StreamReader` and names every problem it
-finds; `recover(src, dst)` copies every message up to the first broken record into a clean file; `info(path)`
-summarises a file (from its summary section, or by a scan when a crash left none).
+`check(path)` walks the file record by record with `mcap.stream_reader.StreamReader` and names every
+problem it finds; `recover(src, dst)` copies every message up to the first broken record into a
+clean file; `info(path)` summarises a file (from its summary section, or by a scan when a crash left
+none).
 """
 
 from __future__ import annotations
@@ -50,8 +53,10 @@ from atr.errors import RecordingError
 MAGIC = bytes([137, 77, 67, 65, 80, 48, 13, 10])
 PROFILE = ""
 LIBRARY = "passive-atr recorder"
-_MESSAGE_HEAD = struct.Struct("<BQHIQQ")  # opcode, record length, channel, sequence, log_time, publish_time
-_CHUNK_HEAD = struct.Struct("<BQQQQII4sQ")  # opcode, length, start, end, size, crc, len("zstd"), "zstd", data len
+# opcode, record length, channel, sequence, log_time, publish_time
+_MESSAGE_HEAD = struct.Struct("<BQHIQQ")
+# opcode, record length, start, end, uncompressed size, crc, len("zstd"), "zstd", records length
+_CHUNK_HEAD = struct.Struct("<BQQQQII4sQ")
 _U32 = 0xFFFFFFFF
 _U64 = 0xFFFFFFFFFFFFFFFF
 
@@ -61,15 +66,16 @@ def _clamp(value: int, upper: int) -> int:
 
 
 class ChunkedWriter:
-    """Writes an MCAP file in zstd chunks; schemas and channels ride in the chunk of their first message.
+    """Writes an MCAP file in zstd chunks; schemas and channels ride in the chunk of their first
+    message.
 
     Args:
         out: path or binary stream to write to (a path is opened and closed by the writer).
         chunk_size_bytes: a chunk is closed once its uncompressed records exceed this size.
         zstd_level: zstd compression level of chunks (1 = fastest).
         zstd_threads: zstd worker threads (0 = compress in the calling thread).
-        background: compress and write chunks on a thread of the writer's own, so that filling the next chunk
-            overlaps with compressing the last (zstd and crc32 release the GIL).
+        background: compress and write chunks on a thread of the writer's own, so that filling the
+            next chunk overlaps with compressing the last (zstd and crc32 release the GIL).
 
     Raises:
         RecordingError: the output cannot be opened.
@@ -119,7 +125,9 @@ class ChunkedWriter:
         self._jobs: queue.Queue[Any] | None = queue.Queue(maxsize=2) if background else None
         self._thread = None
         if self._jobs is not None:
-            self._thread = threading.Thread(target=self._compress_loop, name="mcap-chunks", daemon=True)
+            self._thread = threading.Thread(
+                target=self._compress_loop, name="mcap-chunks", daemon=True
+            )
             self._thread.start()
 
     # Public interface --------------------------------------------------------------------------
@@ -133,7 +141,11 @@ class ChunkedWriter:
         return schema.id
 
     def add_channel(
-        self, topic: str, message_encoding: str, schema_id: int, metadata: dict[str, str] | None = None
+        self,
+        topic: str,
+        message_encoding: str,
+        schema_id: int,
+        metadata: dict[str, str] | None = None,
     ) -> int:
         """Define a channel (schema_id 0 = no schema); returns its id (1, 2, ...)."""
         if schema_id != 0 and schema_id not in self._schemas:
@@ -167,7 +179,9 @@ class ChunkedWriter:
             stats.message_start_time = min(stats.message_start_time, log_time)
             stats.message_end_time = max(stats.message_end_time, log_time)
         stats.message_count += 1
-        stats.channel_message_counts[channel_id] = stats.channel_message_counts.get(channel_id, 0) + 1
+        stats.channel_message_counts[channel_id] = stats.channel_message_counts.get(
+            channel_id, 0
+        ) + 1
         self._index.setdefault(channel_id, []).append((log_time, len(self._buf)))
         self._buf += _MESSAGE_HEAD.pack(
             Opcode.MESSAGE,
@@ -188,10 +202,11 @@ class ChunkedWriter:
         return self._chunk_messages
 
     def flush(self) -> None:
-        """Close the chunk in progress (if it holds a message): compress it and write it to the stream.
+        """Close the chunk in progress (if it holds a message): compress it and write it to the
+        stream.
 
-        With `background=True` the compression and write happen on the writer's own thread (at most two chunks
-        wait for it); `close()` waits for them.
+        With `background=True` the compression and write happen on the writer's own thread (at most
+        two chunks wait for it); `close()` waits for them.
 
         Raises:
             RecordingError: an earlier background write failed.
@@ -223,9 +238,12 @@ class ChunkedWriter:
 
     def _raise_failure(self) -> None:
         if self._failure is not None:
-            raise RecordingError(f"writing the recording failed: {self._failure}") from self._failure
+            failure = self._failure
+            raise RecordingError(f"writing the recording failed: {failure}") from failure
 
-    def _write_chunk(self, raw: bytearray, index: dict[int, list[tuple[int, int]]], start: int, end: int) -> None:
+    def _write_chunk(
+        self, raw: bytearray, index: dict[int, list[tuple[int, int]]], start: int, end: int
+    ) -> None:
         compressed = self._zstd.compress(raw)
         chunk_offset = self._pos
         # Chunk record framed by hand: the compressed payload is written straight, not copied again.
@@ -336,12 +354,15 @@ def _record_bytes(record: Any) -> bytes:
 
 class _Truncated(McapError):
     def __init__(self, offset: int, wanted: int, got: int) -> None:
-        super().__init__(f"file ends at offset {offset + got}: a record needs {wanted - got} more bytes")
+        super().__init__(
+            f"file ends at offset {offset + got}: a record needs {wanted - got} more bytes"
+        )
         self.offset = offset
 
 
 class _StrictStream:
-    """A read-only view of a file that raises on a short read (the mcap reader does not) and knows its offset."""
+    """A read-only view of a file that raises on a short read (the mcap reader does not) and knows
+    its offset."""
 
     def __init__(self, f: IO[bytes]) -> None:
         self._f = f
@@ -387,7 +408,8 @@ def _chunk_records(chunk: Chunk, where: str, problems: list[str]) -> list[Any] |
     data = stream.read(length) if length else b""
     if len(data) != chunk.uncompressed_size:
         problems.append(
-            f"{where}: uncompressed size {len(data)} bytes differs from the recorded {chunk.uncompressed_size}"
+            f"{where}: uncompressed size {len(data)} bytes differs from the recorded "
+            f"{chunk.uncompressed_size}"
         )
     if chunk.uncompressed_crc != 0 and zlib.crc32(data) != chunk.uncompressed_crc:
         problems.append(
@@ -414,13 +436,18 @@ def _chunk_records(chunk: Chunk, where: str, problems: list[str]) -> list[Any] |
     return records
 
 
-def _walk(path: str | Path, *, on_message: Any = None, stop_at_first_problem: bool = False) -> _Walk:
-    """One pass over the records of `path`; `on_message(schema, channel, message)` is called in file order."""
+def _walk(
+    path: str | Path, *, on_message: Any = None, stop_at_first_problem: bool = False
+) -> _Walk:
+    """One pass over the records of `path`; `on_message(schema, channel, message)` is called in file
+    order."""
     w = _Walk()
     size = os.path.getsize(path)
     with open(path, "rb") as f:
         strict = _StrictStream(f)
-        reader = StreamReader(strict, emit_chunks=True, record_size_limit=size)  # type: ignore[arg-type]
+        reader = StreamReader(
+            strict, emit_chunks=True, record_size_limit=size  # type: ignore[arg-type]
+        )
         records = reader.records
         in_summary = False
         last_chunk_offset: int | None = None
@@ -489,10 +516,13 @@ def _walk(path: str | Path, *, on_message: Any = None, stop_at_first_problem: bo
                                 f"{where}: log time goes back ({item.log_time} after {last_log})"
                             )
                         last_log = item.log_time
-                if times and (min(times), max(times)) != (record.message_start_time, record.message_end_time):
+                if times and (min(times), max(times)) != (
+                    record.message_start_time, record.message_end_time
+                ):
                     w.problems.append(
                         f"{where}: message time range [{record.message_start_time}, "
-                        f"{record.message_end_time}] differs from its messages [{min(times)}, {max(times)}]"
+                        f"{record.message_end_time}] differs from its messages "
+                        f"[{min(times)}, {max(times)}]"
                     )
                 if stop_at_first_problem and len(w.problems) > before:
                     break
@@ -527,14 +557,19 @@ def _walk(path: str | Path, *, on_message: Any = None, stop_at_first_problem: bo
 
 def _define_channel(w: _Walk, channel: Channel, at: str) -> None:
     if channel.schema_id != 0 and channel.schema_id not in w.schemas:
-        w.problems.append(f"{at}: channel {channel.topic!r} refers to schema id {channel.schema_id}, not defined before it")
+        w.problems.append(
+            f"{at}: channel {channel.topic!r} refers to schema id {channel.schema_id}, "
+            "not defined before it"
+        )
     w.channels[channel.id] = channel
 
 
 def _take_message(w: _Walk, message: Message, at: str, on_message: Any) -> None:
     channel = w.channels.get(message.channel_id)
     if channel is None:
-        w.problems.append(f"{at}: message on channel id {message.channel_id}, not defined before it")
+        w.problems.append(
+            f"{at}: message on channel id {message.channel_id}, not defined before it"
+        )
         return
     w.messages += 1
     w.message_counts[message.channel_id] = w.message_counts.get(message.channel_id, 0) + 1
@@ -545,7 +580,11 @@ def _take_message(w: _Walk, message: Message, at: str, on_message: Any) -> None:
 
 
 def _check_message_index(
-    w: _Walk, index: MessageIndex, at: str, chunk_offset: int | None, offsets: dict[int, list[tuple[int, int]]]
+    w: _Walk,
+    index: MessageIndex,
+    at: str,
+    chunk_offset: int | None,
+    offsets: dict[int, list[tuple[int, int]]],
 ) -> None:
     if chunk_offset is None:
         w.problems.append(f"{at}: message index before any chunk")
@@ -572,14 +611,17 @@ def _check_summary(w: _Walk, path: str | Path) -> None:
         if w.footer.summary_start:
             f.seek(w.footer.summary_start)
             summary = f.read(size - 8 - 29 - w.footer.summary_start)
-            head = struct.pack("<BQQQ", Opcode.FOOTER, 20, w.footer.summary_start, w.footer.summary_offset_start)
+            head = struct.pack(
+                "<BQQQ", Opcode.FOOTER, 20, w.footer.summary_start, w.footer.summary_offset_start
+            )
             crc = zlib.crc32(head, zlib.crc32(summary))
             if w.footer.summary_crc not in (0, crc):
                 w.problems.append(
-                    f"summary CRC mismatch (computed 0x{crc:08x}, recorded 0x{w.footer.summary_crc:08x})"
+                    f"summary CRC mismatch (computed 0x{crc:08x}, "
+                    f"recorded 0x{w.footer.summary_crc:08x})"
                 )
         for offset in w.summary_offsets:
-            if offset.group_length == 0:  # an empty group may point anywhere (the reference writer does so)
+            if offset.group_length == 0:  # may point anywhere (the reference writer does so)
                 continue
             f.seek(offset.group_start)
             opcode = f.read(1)
@@ -590,10 +632,14 @@ def _check_summary(w: _Walk, path: str | Path) -> None:
                 )
     for sid, schema in w.summary_schemas.items():
         if w.schemas.get(sid) != schema:
-            w.problems.append(f"summary schema {sid} ({schema.name}) differs from the data section's")
+            w.problems.append(
+                f"summary schema {sid} ({schema.name}) differs from the data section's"
+            )
     for cid, channel in w.summary_channels.items():
         if w.channels.get(cid) != channel:
-            w.problems.append(f"summary channel {cid} ({channel.topic}) differs from the data section's")
+            w.problems.append(
+                f"summary channel {cid} ({channel.topic}) differs from the data section's"
+            )
     if w.chunk_indexes:
         indexed = {ci.chunk_start_offset: ci for ci in w.chunk_indexes}
         for offset in sorted(set(w.chunks) - set(indexed)):
@@ -601,13 +647,17 @@ def _check_summary(w: _Walk, path: str | Path) -> None:
         for offset, ci in sorted(indexed.items()):
             chunk = w.chunks.get(offset)
             if chunk is None:
-                w.problems.append(f"chunk index points at offset {offset}, where no readable chunk starts")
+                w.problems.append(
+                    f"chunk index points at offset {offset}, where no readable chunk starts"
+                )
             elif (ci.message_start_time, ci.message_end_time, ci.uncompressed_size) != (
                 chunk.message_start_time,
                 chunk.message_end_time,
                 chunk.uncompressed_size,
             ):
-                w.problems.append(f"chunk index for offset {offset} disagrees with the chunk (times or size)")
+                w.problems.append(
+                    f"chunk index for offset {offset} disagrees with the chunk (times or size)"
+                )
     s = w.statistics
     if s is None:
         return
@@ -630,16 +680,19 @@ def _check_summary(w: _Walk, path: str | Path) -> None:
             stated, found = s.channel_message_counts.get(cid, 0), w.message_counts.get(cid, 0)
             if stated != found:
                 topic = w.channels[cid].topic if cid in w.channels else f"id {cid}"
-                w.problems.append(f"statistics count {stated} for channel {topic}, the data holds {found}")
+                w.problems.append(
+                    f"statistics count {stated} for channel {topic}, the data holds {found}"
+                )
 
 
 def check(path: str | Path) -> list[str]:
     """Validate an MCAP file; returns the problems found (empty when the file is sound).
 
-    Checked: magic at both ends, every channel's schema defined before it, every message's channel defined before
-    it, chunk decompression, uncompressed sizes and CRCs, chunk time ranges, message indexes against their chunk,
-    log times non-decreasing within chunks and indexes, DataEnd/Footer present, summary CRC, summary schemas and
-    channels equal to the data section's, chunk indexes and statistics consistent with the data.
+    Checked: magic at both ends; every channel's schema and every message's channel defined before
+    use; chunk decompression, uncompressed sizes and CRCs, chunk time ranges; message indexes
+    against their chunk; log times non-decreasing within chunks and indexes; DataEnd and Footer
+    present; summary CRC; summary schemas and channels equal to the data section's; chunk indexes
+    and statistics consistent with the data.
 
     Raises:
         RecordingError: the file cannot be opened.
@@ -655,7 +708,8 @@ def check(path: str | Path) -> list[str]:
 
 @dataclass(frozen=True)
 class RecoverResult:
-    """What `recover` kept: messages and channels copied, and where the source stopped being readable."""
+    """What `recover` kept: messages and channels copied, and where the source stopped being
+    readable."""
 
     messages: int
     channels: int
@@ -684,13 +738,19 @@ def recover(src: str | Path, dst: str | Path) -> RecoverResult:
                 sid = 0
                 if schema is not None:
                     if schema.id not in schema_ids:
-                        schema_ids[schema.id] = writer.add_schema(schema.name, schema.encoding, schema.data)
+                        schema_ids[schema.id] = writer.add_schema(
+                            schema.name, schema.encoding, schema.data
+                        )
                     sid = schema_ids[schema.id]
                 channel_ids[channel.id] = writer.add_channel(
                     channel.topic, channel.message_encoding, sid, channel.metadata
                 )
             writer.add_message(
-                channel_ids[channel.id], message.log_time, message.publish_time, message.sequence, message.data
+                channel_ids[channel.id],
+                message.log_time,
+                message.publish_time,
+                message.sequence,
+                message.data,
             )
 
         w = _walk(src, on_message=copy, stop_at_first_problem=True)
@@ -739,7 +799,8 @@ class RecordingInfo:
 
 
 def info(path: str | Path) -> RecordingInfo:
-    """Summarise `path` from its summary section, or by a scan when it has none (a crashed recording).
+    """Summarise `path` from its summary section, or by a scan when it has none (a crashed
+    recording).
 
     Raises:
         RecordingError: the file cannot be opened or is not MCAP.
@@ -771,8 +832,8 @@ def info(path: str | Path) -> RecordingInfo:
 
 
 def iter_messages(path: str | Path) -> Any:
-    """(topic, Message) pairs of `path` in log-time order, for tools and tests; cut-short files are read up to
-    their last complete chunk.
+    """(topic, Message) pairs of `path` in log-time order, for tools and tests; cut-short files are
+    read up to their last complete chunk.
 
     Raises:
         RecordingError: the file cannot be opened.

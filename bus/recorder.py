@@ -1,16 +1,22 @@
-"""The recorder: every message on `atr/**` and `sim/**`, as received, into one MCAP file (ARCHITECTURE.md §6).
+"""The recorder: every message on `atr/**` and `sim/**`, as received, into one MCAP file
+(ARCHITECTURE.md §6).
 
-- topic = key expression; message encoding `msgpack`; schema encoding `jsonschema` with the registry's schema
-  (`bus.schemas.schema_bytes`); keys outside the contract get a channel without schema (schema id 0);
-- log_time = receive time (ns, taken on Zenoh's callback thread under a lock, so it never goes back);
-  publish_time = the message's stamp_ns; sequence = its seq. Both come from the attachment, else from the
-  payload itself (`codec.unpack`), else 0;
-- bytes are written as received: nothing is re-encoded, nothing rejected (a bad message is evidence);
-- one Zenoh subscriber (on `**`, filtered, when several key expressions are asked for), so messages are written
-  in the order the link delivered them: Zenoh runs callbacks of different subscribers concurrently;
-- Zenoh's callback only timestamps and enqueues (unbounded queue: no loss); a writer thread does the rest;
-- a chunk is closed when it exceeds `chunk_size_bytes` or `flush_interval_s` after its first message, so a
-  `kill -9` loses at most about that long; SIGINT/SIGTERM close the file with its summary and indexes.
+- topic = key expression; message encoding `msgpack`; schema encoding `jsonschema` with the
+  registry's schema (`bus.schemas.schema_bytes`); keys outside the contract get a channel without
+  schema (schema id 0);
+- log_time = receive time (ns, taken on Zenoh's callback thread under a lock, so it never goes
+  back); publish_time = the message's stamp_ns; sequence = its seq. Both come from the attachment,
+  else from the payload itself (`codec.unpack`), else 0;
+- bytes are written as received: nothing is re-encoded, nothing rejected (a bad message is
+  evidence);
+- one Zenoh subscriber (on `**`, filtered, when several key expressions are asked for), so messages
+  are written in the order the link delivered them: Zenoh runs callbacks of different subscribers
+  concurrently;
+- Zenoh's callback only timestamps and enqueues (unbounded queue: no loss); a writer thread does the
+  rest;
+- a chunk is closed when it exceeds `chunk_size_bytes` or `flush_interval_s` after its first
+  message, so a `kill -9` loses at most about that long; SIGINT/SIGTERM close the file with its
+  summary and indexes.
 """
 
 from __future__ import annotations
@@ -44,9 +50,9 @@ class RecorderConfig:
     Attributes:
         key_exprs: key expressions subscribed to.
         chunk_size_bytes: a chunk is written once its uncompressed records exceed this many bytes.
-        flush_interval_s: a chunk is written at the latest this long after its first message (bounds the loss on
-            a crash), seconds.
-        zstd_level: zstd level of chunks; 1 keeps up with the 2x camera load on one core (docs/performance/bus.md).
+        flush_interval_s: a chunk is written at the latest this long after its first message (bounds
+            the loss on a crash), seconds.
+        zstd_level: zstd level of chunks (1: fastest positive level; see docs/performance/bus.md).
         zstd_threads: zstd worker threads (0 = compress in the writer thread).
     """
 
@@ -91,8 +97,8 @@ class Recorder:
         session: an open Zenoh session (not closed by the recorder).
         out: path of the MCAP file to write (parent folders are created).
         config: chunking and subscription settings.
-        on_problem: called from the writer thread with (key, exception) for problems worth reporting on the bus
-            (sequence gaps; a write failure, after which recording stops).
+        on_problem: called from the writer thread with (key, exception) for problems worth reporting
+            on the bus (sequence gaps; a write failure, after which recording stops).
 
     Raises:
         RecordingError: the file cannot be created.
@@ -125,9 +131,9 @@ class Recorder:
         self._last_seq: dict[tuple[str, str], int] = {}
         self._thread = threading.Thread(target=self._write_loop, name="mcap-writer", daemon=True)
         self._thread.start()
-        # One subscriber only: Zenoh runs different subscribers' callbacks concurrently, so two of them
-        # (atr/**, sim/**) would interleave the link's order; with several key expressions we take `**`
-        # and keep the samples that match one of them.
+        # One subscriber only: Zenoh runs different subscribers' callbacks concurrently, so two of
+        # them (atr/**, sim/**) would interleave the link's order; with several key expressions we
+        # take `**` and keep the samples that match one of them.
         exprs = self.config.key_exprs
         self._filters = [zenoh.KeyExpr(k) for k in exprs] if len(exprs) > 1 else []
         sub_key = exprs[0] if len(exprs) == 1 else "**"
@@ -145,7 +151,7 @@ class Recorder:
         with self._clock:  # receive time and queue order agree, so log times never go back
             self._queue.put((time.time_ns(), key, payload, attachment))
 
-    # Writer thread ---------------------------------------------------------------------------------
+    # Writer thread --------------------------------------------------------------------------------
 
     def _write_loop(self) -> None:
         interval_ns = int(self.config.flush_interval_s * 1e9)
@@ -167,7 +173,8 @@ class Recorder:
                     first_pending_ns = now
                 depth = self._queue.qsize()
                 self.stats.queue_max = max(self.stats.queue_max, depth)
-            if self._writer.pending_messages and now - first_pending_ns >= interval_ns and self.failure is None:
+            due = now - first_pending_ns >= interval_ns
+            if self._writer.pending_messages and due and self.failure is None:
                 try:
                     self._writer.flush()
                 except (OSError, RecordingError) as exc:
@@ -205,7 +212,9 @@ class Recorder:
         if type_name is not None:
             schema_id = self._schema_ids.get(type_name, 0)
             if not schema_id:
-                schema_id = self._writer.add_schema(type_name, "jsonschema", schemas.schema_bytes(type_name))
+                schema_id = self._writer.add_schema(
+                    type_name, "jsonschema", schemas.schema_bytes(type_name)
+                )
                 self._schema_ids[type_name] = schema_id
         else:
             self.stats.without_schema += 1
@@ -234,7 +243,9 @@ class Recorder:
         self._last_seq[(key, source)] = seq
         if last is not None and seq != last + 1:
             self.stats.gaps += 1
-            self._problem(key, BusError(f"sequence gap on {key} from {source}: seq {seq} after {last}"))
+            self._problem(
+                key, BusError(f"sequence gap on {key} from {source}: seq {seq} after {last}")
+            )
 
     # Lifecycle ---------------------------------------------------------------------------------
 
@@ -274,13 +285,13 @@ def _int_field(message: dict[Any, Any], name: str) -> int:
 
 
 class RecorderNode(Node):
-    """A `Node` whose Status also carries the recorder's figures: counters messages, bytes, channels, gaps,
-    queue_max, unstamped; handled_by_key = messages recorded per topic."""
+    """A `Node` whose Status also carries the recorder's figures: counters messages, bytes,
+    channels, gaps, queue_max, unstamped; handled_by_key = messages recorded per topic."""
 
     recorder: Recorder | None = None
 
     def _publish_status(self, state: str) -> None:
-        # Same Status as Node's, plus the recorder's counters (Status.counters allows any integer counter).
+        # Node's Status plus the recorder's counters (Status.counters allows any integer counter).
         c = self.counters
         counters = {
             "received": c.received,
@@ -335,8 +346,8 @@ def run_recorder(
     service: str = "recorder",
     ready: threading.Event | None = None,
 ) -> RecorderStats:
-    """Record until SIGINT/SIGTERM (or `Node.stop()`), then close the file; what `atr record` and the recorder
-    service run. Status and ErrorReports go on `atr/{uav}/{service}/...`.
+    """Record until SIGINT/SIGTERM (or `Node.stop()`), then close the file; what `atr record` and
+    the recorder service run. Status and ErrorReports go on `atr/{uav}/{service}/...`.
 
     Raises:
         RecordingError: the file could not be written.
@@ -361,6 +372,11 @@ def run_recorder(
             stats = recorder.close()
         log.info(
             "closed %s: %d messages, %.1f MB, %d channels, %d gaps, max queue %d",
-            recorder.path, stats.messages, stats.bytes / 1e6, stats.channels, stats.gaps, stats.queue_max,
+            recorder.path,
+            stats.messages,
+            stats.bytes / 1e6,
+            stats.channels,
+            stats.gaps,
+            stats.queue_max,
         )
         return stats

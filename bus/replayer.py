@@ -1,21 +1,23 @@
 """The replayer: a recording's inputs back on the bus, in log-time order (ARCHITECTURE.md §5–6).
 
-Inputs are the messages on `atr/*/camera/image`, `atr/*/imu`, `atr/*/lidar/cloud` and `sim/*/truth`. Each is
-published with its recorded bytes (byte-identical payload) and a fresh attachment carrying the recorded seq
-(MCAP `sequence`), the recorded stamp (MCAP `publish_time`) and the replayer's own source id.
+Inputs are the messages on `atr/*/camera/image`, `atr/*/imu`, `atr/*/lidar/cloud` and `sim/*/truth`.
+Each is published with its recorded bytes (byte-identical payload) and a fresh attachment carrying
+the recorded seq (MCAP `sequence`), the recorded stamp (MCAP `publish_time`) and the replayer's own
+source id.
 
 Modes (one method each):
 - `recorded(rate)`: log-time spacing divided by `rate` (1.0 = as recorded);
 - `fast()`: as fast as the bus takes them (publishers block rather than drop);
-- `lock_step(answer_key, answer_timeout_s)`: everything up to and including a camera frame is published, then
-  the replayer waits for the pipeline's answer to that frame: a message on `answer_key` (default
-  `atr/{uav}/detections`) whose `stamp_ns` equals the image's, or an ErrorReport on any `atr/{uav}/*/errors` key
-  whose `input_stamp_ns` equals it. A missing answer after `answer_timeout_s` is logged, counted and reported on
-  the replayer's errors key, and the replay goes on. See docs/recording.md.
+- `lock_step(answer_key, answer_timeout_s)`: everything up to and including a camera frame is
+  published, then the replayer waits for the pipeline's answer to that frame: a message on
+  `answer_key` (default `atr/{uav}/detections`) whose `stamp_ns` equals the image's, or an
+  ErrorReport on any `atr/{uav}/*/errors` key whose `input_stamp_ns` equals it. A missing answer
+  after `answer_timeout_s` is logged, counted and reported on the replayer's errors key, and the
+  replay goes on. See docs/recording.md.
 
-Before the first message the replayer waits until the services named in `wait_for` have published a Status
-(their subscribers exist by then), until every publisher has a matching subscriber (or `match_timeout_s`), and
-then `settle_s`, so the first messages are not lost.
+Before the first message the replayer waits until the services named in `wait_for` have published a
+Status (their subscribers exist by then), until every publisher has a matching subscriber (or
+`match_timeout_s`), and then `settle_s`, so the first messages are not lost.
 """
 
 from __future__ import annotations
@@ -48,7 +50,8 @@ DEFAULT_ANSWER_KEY = "atr/{uav}/detections"
 
 
 def is_input_topic(topic: str) -> bool:
-    """True for the keys a replay publishes (camera images, IMU batches, LIDAR clouds, simulator truth)."""
+    """True for the keys a replay publishes (camera images, IMU batches, LIDAR clouds, simulator
+    truth)."""
     return INPUT_TOPIC.match(topic) is not None
 
 
@@ -70,7 +73,8 @@ class Replayer:
 
     Args:
         path: the MCAP recording (closed cleanly; run `atr mcap recover` on a crashed one first).
-        session: an open Zenoh session to publish on (not closed here); None opens one from `zenoh_config`.
+        session: an open Zenoh session to publish on (not closed here); None opens one from
+            `zenoh_config`.
         zenoh_config: config dict or JSON5 path, used when `session` is None.
         uav: replay only this vehicle's inputs (None: every vehicle in the recording).
         wait_for: services (e.g. "sfm") whose Status must be seen before the first message.
@@ -113,7 +117,9 @@ class Replayer:
         self._answers: set[tuple[str, int]] = set()
         self._answer_cv = threading.Condition()
         self._publishers = {
-            topic: self.session.declare_publisher(topic, congestion_control=zenoh.CongestionControl.BLOCK)
+            topic: self.session.declare_publisher(
+                topic, congestion_control=zenoh.CongestionControl.BLOCK
+            )
             for topic in self.topics
         }
 
@@ -149,7 +155,8 @@ class Replayer:
     def lock_step(
         self, answer_key: str = DEFAULT_ANSWER_KEY, answer_timeout_s: float = 60.0
     ) -> ReplayStats:
-        """Publish up to and including each camera frame, then wait for the pipeline's answer to that frame.
+        """Publish up to and including each camera frame, then wait for the pipeline's answer to
+        that frame.
 
         Args:
             answer_key: key of the answers; `{uav}` is replaced by the frame's vehicle id.
@@ -195,7 +202,8 @@ class Replayer:
             self._answer_cv.notify_all()
 
     def close(self, linger_s: float = 0.3) -> None:
-        """Let the last publications leave (`linger_s`), then undeclare and close what this replayer opened."""
+        """Let the last publications leave (`linger_s`), then undeclare and close what this replayer
+        opened."""
         if linger_s > 0:
             time.sleep(linger_s)
         for pub in self._publishers.values():
@@ -221,7 +229,8 @@ class Replayer:
                 summary = make_reader(f).get_summary()
             except Exception as exc:  # the mcap reader raises several types on a cut-short file
                 raise RecordingError(
-                    f"{self.path} has no readable summary ({exc}); run `atr mcap recover` on it first"
+                    f"{self.path} has no readable summary ({exc}); "
+                    "run `atr mcap recover` on it first"
                 ) from exc
         if summary is None:
             raise RecordingError(f"{self.path} has no summary; run `atr mcap recover` on it first")
@@ -234,12 +243,16 @@ class Replayer:
         )
         if not topics:
             which = f" for {uav}" if uav else ""
-            raise RecordingError(f"{self.path} holds no input{which} (camera/image, imu, lidar/cloud, truth)")
+            raise RecordingError(
+                f"{self.path} holds no input{which} (camera/image, imu, lidar/cloud, truth)"
+            )
         return topics
 
     def _messages(self) -> Iterator[tuple[str, Message]]:
         with open(self.path, "rb") as f:
-            for _, channel, message in make_reader(f).iter_messages(topics=self.topics, log_time_order=True):
+            for _, channel, message in make_reader(f).iter_messages(
+                topics=self.topics, log_time_order=True
+            ):
                 if self._stop.is_set():
                     return
                 yield channel.topic, message
@@ -258,10 +271,14 @@ class Replayer:
             self._wait_for_services()
         deadline = time.monotonic() + self._match_timeout_s
         for topic, pub in self._publishers.items():
-            while not pub.matching_status and time.monotonic() < deadline and not self._stop.is_set():
+            while not (pub.matching_status or self._stop.is_set() or time.monotonic() > deadline):
                 time.sleep(0.01)
             if not pub.matching_status:
-                log.warning("no subscriber for %s after %.1f s; publishing anyway", topic, self._match_timeout_s)
+                log.warning(
+                    "no subscriber for %s after %.1f s; publishing anyway",
+                    topic,
+                    self._match_timeout_s,
+                )
         self._stop.wait(self._settle_s)
 
     def _wait_for_services(self) -> None:
@@ -273,24 +290,31 @@ class Replayer:
                 seen.add(str(sample.key_expr).split("/")[2])
                 cv.notify_all()
 
-        subs = [self.session.declare_subscriber(f"atr/*/{s}/status", on_status) for s in self._wait_for]
+        subs = [
+            self.session.declare_subscriber(f"atr/*/{s}/status", on_status) for s in self._wait_for
+        ]
         try:
             with cv:
                 ok = cv.wait_for(
-                    lambda: seen >= set(self._wait_for) or self._stop.is_set(), timeout=self._ready_timeout_s
+                    lambda: seen >= set(self._wait_for) or self._stop.is_set(),
+                    timeout=self._ready_timeout_s,
                 )
         finally:
             for sub in subs:
                 sub.undeclare()
         if not ok:
             missing = sorted(set(self._wait_for) - seen)
-            raise BusError(f"no Status from {', '.join(missing)} within {self._ready_timeout_s} s; are they running?")
+            raise BusError(
+                f"no Status from {', '.join(missing)} within {self._ready_timeout_s} s; "
+                "are they running?"
+            )
 
     def _on_answer(self, sample: zenoh.Sample) -> None:
         self._note_answer(sample, "stamp_ns")
 
     def _on_error_report(self, sample: zenoh.Sample) -> None:
-        if str(sample.key_expr).split("/")[2] != self.node.service:  # our own timeout reports answer nothing
+        # the replayer's own timeout reports answer nothing
+        if str(sample.key_expr).split("/")[2] != self.node.service:
             self._note_answer(sample, "input_stamp_ns")
 
     def _note_answer(self, sample: zenoh.Sample, field_name: str) -> None:
@@ -322,7 +346,10 @@ class Replayer:
         key = answer_key.replace("{uav}", uav)
         self.node.report_error(
             keys.image(uav),
-            BusError(f"no answer on {key} (or an ErrorReport) to the frame of stamp {stamp} ns within {timeout_s} s"),
+            BusError(
+                f"no answer on {key} (or an ErrorReport) to the frame of stamp {stamp} ns "
+                f"within {timeout_s} s"
+            ),
             input_seq=image.sequence,
             input_stamp_ns=stamp,
             input_source=self.source_id,

@@ -1,9 +1,10 @@
 """Inspect, check and repair MCAP recordings.
 
-`info` lists channels (topic, schema, message count), the time span, message count and size. `check` validates
-the file record by record (magic, schema and channel definitions before use, chunk CRCs and sizes, indexes,
-summary and statistics against the data, log-time order) and names every problem (exit 1), or prints OK.
-`recover` copies everything up to the first broken record (e.g. after a crash) into a clean file.
+`info` lists channels (topic, schema, message count), the time span, message count and size. `check`
+validates the file record by record (magic, schema and channel definitions before use, chunk CRCs
+and sizes, indexes, summary and statistics against the data, log-time order) and names every problem
+(exit 1), or prints OK. `recover` copies everything up to the first broken record (e.g. after a
+crash) into a clean file.
 
 Examples:
     atr mcap info runs/flight.mcap
@@ -23,7 +24,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     info.add_argument("file", metavar="FILE")
     check = sub.add_parser("check", help="validate a recording; exit 1 naming each problem")
     check.add_argument("file", metavar="FILE")
-    recover = sub.add_parser("recover", help="copy a cut-short recording up to its last good record")
+    recover = sub.add_parser(
+        "recover", help="copy a cut-short recording up to its last good record"
+    )
     recover.add_argument("src", metavar="IN")
     recover.add_argument("dst", metavar="OUT")
 
@@ -34,7 +37,9 @@ def _stamp(ns: int | None) -> str:
     if ns is None:
         return "-"
     if ns > 10**17:  # Unix epoch
-        return datetime.datetime.fromtimestamp(ns / 1e9, datetime.UTC).isoformat(timespec="milliseconds")
+        return datetime.datetime.fromtimestamp(ns / 1e9, datetime.UTC).isoformat(
+            timespec="milliseconds"
+        )
     return f"{ns / 1e9:.3f} s"
 
 
@@ -47,7 +52,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"file:      {info.path}")
         print(f"size:      {info.size_bytes / 1e6:.3f} MB{'' if info.closed else ' (not closed)'}")
         print(f"messages:  {info.messages} in {info.chunks} chunk(s)")
-        print(f"span:      {_stamp(info.start_ns)} .. {_stamp(info.end_ns)} ({info.duration_s:.3f} s)")
+        print(
+            f"span:      {_stamp(info.start_ns)} .. {_stamp(info.end_ns)} ({info.duration_s:.3f} s)"
+        )
         print(f"channels:  {len(info.channels)}")
         width = max((len(c.topic) for c in info.channels), default=5)
         for c in info.channels:

@@ -1,12 +1,12 @@
 """Record every message on the bus (`atr/**`, `sim/**`) into one MCAP file until Ctrl-C or SIGTERM.
 
-The file follows ARCHITECTURE.md §6 (msgpack messages, JSON Schema channels, zstd chunks, log time = receive
-time); see docs/recording.md. A chunk is written at least every `--flush-interval` seconds, so a crash loses at
-most that much (`atr mcap recover` repairs a file cut short).
+The file follows ARCHITECTURE.md §6 (msgpack messages, JSON Schema channels, zstd chunks, log time =
+receive time); see docs/recording.md. A chunk is written at least every `--flush-interval` seconds,
+so a crash loses at most that much (`atr mcap recover` repairs a file cut short).
 
 Examples:
-    atr record --out runs/flight.mcap                       # default Zenoh session (ATR_ZENOH_* env)
-    atr record --out runs/ground.mcap --zenoh compose/local/zenoh.json5
+    atr record --out runs/flight.mcap            # default Zenoh session (ATR_ZENOH_* env)
+    atr record --out runs/ground.mcap --zenoh compose/zenoh/local.json5
     atr record --out runs/uav2.mcap --uav uav2 --flush-interval 0.5
 """
 
@@ -18,18 +18,26 @@ import argparse
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr record`."""
     parser.add_argument("--out", required=True, help="MCAP file to write (folders are created)")
-    parser.add_argument("--zenoh", metavar="CONFIG", help="Zenoh JSON5 config (default: ATR_ZENOH_* env)")
     parser.add_argument(
-        "--uav", default="uav1", help="vehicle id of the recorder's own status/errors keys (default uav1)"
+        "--zenoh", metavar="CONFIG", help="Zenoh JSON5 config (default: ATR_ZENOH_* env)"
     )
-    parser.add_argument("--service", default="recorder", help="service name of its status/errors keys")
+    parser.add_argument(
+        "--uav", default="uav1", help="vehicle id of the recorder's own status/errors keys"
+    )
+    parser.add_argument(
+        "--service", default="recorder", help="service name of its status/errors keys"
+    )
     parser.add_argument(
         "--key", action="append", dest="keys", metavar="KEYEXPR",
         help="key expression to record (repeatable; default atr/** and sim/**)",
     )
     parser.add_argument("--chunk-size", type=int, default=8 * 1024 * 1024, help="chunk size, bytes")
-    parser.add_argument("--flush-interval", type=float, default=1.0, help="max age of an unwritten chunk, s")
-    parser.add_argument("--zstd-level", type=int, default=1, help="zstd level of chunks (default 1)")
+    parser.add_argument(
+        "--flush-interval", type=float, default=1.0, help="max age of an unwritten chunk, s"
+    )
+    parser.add_argument(
+        "--zstd-level", type=int, default=1, help="zstd level of chunks (default 1)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -44,5 +52,7 @@ def run(args: argparse.Namespace) -> int:
         flush_interval_s=args.flush_interval,
         zstd_level=args.zstd_level,
     )
-    run_recorder(args.out, uav=args.uav, zenoh_config=args.zenoh, config=config, service=args.service)
+    run_recorder(
+        args.out, uav=args.uav, zenoh_config=args.zenoh, config=config, service=args.service
+    )
     return 0

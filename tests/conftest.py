@@ -1,8 +1,9 @@
 """Fixtures shared by every test folder: free TCP ports, a Zenoh hub process, peer configs.
 
-Topology used by tests that talk over a real bus: one hub process (a Zenoh session in router mode) listens on a
-free loopback port; every other session is a peer that connects to the hub and listens on tcp/127.0.0.1:0 so that
-gossip can link peers to each other. Multicast scouting is always off.
+Topology used by tests that talk over a real bus, as in compose/local: one hub process (a Zenoh
+session in peer mode) listens on a free loopback port; every other session is a peer that connects
+to the hub and listens on tcp/127.0.0.1:0 so that gossip can link peers to each other. Multicast
+scouting is always off.
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ REPO = Path(__file__).resolve().parents[1]
 _HUB_CODE = """
 import signal, sys, threading
 from bus.session import default_config, open_session
-session = open_session(default_config(sys.argv[2] if len(sys.argv) > 2 else "peer", connect=[], listen=[sys.argv[1]]))
+mode = sys.argv[2] if len(sys.argv) > 2 else "peer"
+session = open_session(default_config(mode, connect=[], listen=[sys.argv[1]]))
 stop = threading.Event()
 for sig in (signal.SIGTERM, signal.SIGINT):
     signal.signal(sig, lambda *_: stop.set())

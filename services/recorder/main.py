@@ -1,7 +1,8 @@
-"""The recorder service: everything on the bus into one MCAP file (see bus/recorder.py, docs/recording.md).
+"""The recorder service: everything on the bus into one MCAP file (see bus/recorder.py,
+docs/recording.md).
 
-Started by every layout; stops and closes its file on SIGTERM/SIGINT. Settings come from the command line or
-from the environment (ATR_RECORDER_OUT, ATR_UAV); see service.yml.
+Started by every layout; stops and closes its file on SIGTERM/SIGINT. Settings come from the command
+line or from the environment (ATR_RECORDER_OUT, ATR_UAV); see service.yml.
 """
 
 from __future__ import annotations
@@ -19,11 +20,17 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="recorder", description=__doc__)
     parser.add_argument(
         "--out",
-        default=os.environ.get("ATR_RECORDER_OUT") or time.strftime("runs/recording-%Y%m%d-%H%M%S.mcap"),
+        default=os.environ.get("ATR_RECORDER_OUT") or time.strftime(
+            "runs/recording-%Y%m%d-%H%M%S.mcap"
+        ),
         help="MCAP file to write (default $ATR_RECORDER_OUT or runs/recording-<time>.mcap)",
     )
-    parser.add_argument("--uav", default=os.environ.get("ATR_UAV", "uav1"), help="vehicle id of own keys")
-    parser.add_argument("--zenoh", metavar="CONFIG", help="Zenoh JSON5 config (default: ATR_ZENOH_* env)")
+    parser.add_argument(
+        "--uav", default=os.environ.get("ATR_UAV", "uav1"), help="vehicle id of own keys"
+    )
+    parser.add_argument(
+        "--zenoh", metavar="CONFIG", help="Zenoh JSON5 config (default: ATR_ZENOH_* env)"
+    )
     parser.add_argument(
         "--flush-interval",
         type=float,

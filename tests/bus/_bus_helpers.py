@@ -1,11 +1,13 @@
 """Helper processes for the recorder/replayer tests (run as scripts; not collected by pytest).
 
     python _bus_helpers.py publish --frames N [--uav uav1] [--image-shape 48 64]
-        waits until a recorder's Status is seen, then publishes N frames of inputs (truth, IMU batch, image,
-        LIDAR cloud) plus one non-input message (a camera pose) per frame through bus.node.Node, and exits.
+        waits until a recorder's Status is seen, then publishes N frames of inputs (truth, IMU
+        batch, image, LIDAR cloud) plus one non-input message (a camera pose) per frame through
+        bus.node.Node, and exits.
     python _bus_helpers.py pipeline --seed S [--error-every K]
-        a fake pipeline: answers every camera image with one Detections of the same stamp_ns after a random delay
-        (or, every K-th frame, with an ErrorReport whose input_stamp_ns is the image's), until SIGTERM.
+        a fake pipeline: answers every camera image with one Detections of the same stamp_ns after a
+        random delay (or, every K-th frame, with an ErrorReport whose input_stamp_ns is the
+        image's), until SIGTERM.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""The recorder as a real process on a real Zenoh bus: what it writes, bad input, SIGTERM and kill -9."""
+"""The recorder as a real process on a real Zenoh bus: what it writes, bad input, SIGTERM and kill
+-9."""
 
 from __future__ import annotations
 

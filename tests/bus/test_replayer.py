@@ -1,4 +1,5 @@
-"""record -> replay -> record over a real bus: byte-identical inputs; lock-step against a fake pipeline."""
+"""record -> replay -> record over a real bus: byte-identical inputs; lock-step against a fake
+pipeline."""
 
 from __future__ import annotations
 
@@ -43,7 +44,8 @@ def _record(hub: str, watcher: Watcher, out: Path, *during: list[str]) -> None:
 
 @pytest.fixture(scope="module")
 def hub() -> Iterator[str]:
-    """One hub for this module's tests (they run one after the other and share the original recording)."""
+    """One hub for this module's tests (they run one after the other and share the original
+    recording)."""
     proc, endpoint = start_hub()
     try:
         yield endpoint
@@ -81,7 +83,8 @@ def test_replayed_inputs_are_byte_identical(hub: str, tmp_path: Path, original: 
 
 
 def test_recorded_rate_keeps_the_spacing(hub: str, original: Path) -> None:
-    # In-process use (as `atr run` does): replay at 4x and measure the wall time against the recorded span.
+    # In-process use (as `atr run` does): replay at 4x and measure the wall time against the
+    # recorded span.
     info = mcap_tools.info(original)
     stamps = [m.log_time for t, m in _messages(original) if is_input_topic(t)]
     recorded_s = (stamps[-1] - stamps[0]) / 1e9
