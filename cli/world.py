@@ -1,10 +1,13 @@
-"""Export the simulated world's meshes: the vehicle models (the T-72 is also the template store's CAD model)
-and, optionally, the whole world of one scenario run.
+"""Export the simulated world's meshes: the vehicle models (the T-72 is also the template store's
+CAD model) and, optionally, the whole world of one scenario run.
 
 Writes into DIR:
-    vehicles/t72.ply, ifv.ply, truck6x6.ply, car.ply      the vehicle models (vehicle frame: x forward, z up)
-    world_s{S}_r{R}_seed{K}/static.ply, target.ply        the run's world (with --world), world frame
-    world_s{S}_r{R}_seed{K}/world.json                    target pose, sun direction, orbit, occluder width
+    vehicles/t72.ply, ifv.ply, truck6x6.ply, car.ply      the vehicle models (vehicle frame: x
+    forward, z up)
+    world_s{S}_r{R}_seed{K}/static.ply, target.ply        the run's world (with --world), world
+    frame
+    world_s{S}_r{R}_seed{K}/world.json                    target pose, sun direction, orbit,
+    occluder width
 
 Examples:
     atr world export --out meshes
@@ -25,8 +28,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     exp = sub.add_parser("export", help="write vehicle (and world) meshes to a folder",
                          description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     exp.add_argument("--out", type=Path, required=True, help="output folder")
-    exp.add_argument("--format", choices=("ply", "obj", "stl"), default="ply", help="mesh file format")
-    exp.add_argument("--world", action="store_true", help="also export the world of one scenario run")
+    exp.add_argument("--format", choices=("ply", "obj", "stl"), default="ply",
+                     help="mesh file format")
+    exp.add_argument("--world", action="store_true",
+                     help="also export the world of one scenario run")
     exp.add_argument("--scenario", type=int, default=1, help="Table II scenario (1, 2, 3)")
     exp.add_argument("--run", type=int, default=3, help="run within the scenario (1-based)")
     exp.add_argument("--seed", type=int, default=0, help="world seed")

@@ -1,10 +1,11 @@
 """Mesh files: load any PLY/OBJ/STL/GLB/OFF through Open3D into an `atr.sim.Mesh`, save one back.
 
-Real CAD files are often many loose parts, duplicated vertices, degenerate triangles or hollow shells;
-only the outer surface matters to the renderer, the LIDAR and the template builder, so loading merges
-everything into one triangle soup and drops what cannot be rendered (degenerate or NaN triangles).
-Per-triangle materials are not read from files: a loaded mesh gets the `default` material (or the one
-given). Saving writes geometry (PLY/OBJ/STL...) and, for PLY, vertex colours of the material.
+Real CAD files are often many loose parts, duplicated vertices, degenerate triangles or hollow
+shells; only the outer surface matters to the renderer, the LIDAR and the template builder, so
+loading merges everything into one triangle soup and drops what cannot be rendered (degenerate or
+NaN triangles). Per-triangle materials are not read from files: a loaded mesh gets the `default`
+material (or the one given). Saving writes geometry (PLY/OBJ/STL...) and, for PLY, vertex colours of
+the material.
 """
 
 from __future__ import annotations
@@ -49,7 +50,8 @@ def load_mesh(path: str | Path, material: int = M.DEFAULT) -> Mesh:
     if t.shape[0] == 0:
         raise InputError(f"mesh file {p} holds only degenerate triangles")
     used, inv = np.unique(t.ravel(), return_inverse=True)
-    return Mesh(v[used], inv.reshape(-1, 3).astype(np.int32), np.full(t.shape[0], material, np.int16))
+    return Mesh(v[used], inv.reshape(-1, 3).astype(np.int32), np.full(t.shape[0], material,
+                                                                      np.int16))
 
 
 def save_mesh(mesh: Mesh, path: str | Path) -> None:

@@ -1,4 +1,5 @@
-"""Simulated world and sensors: urban scenes with a T-72, UAV orbits, camera, IMU and LIDAR (Table II).
+"""Simulated world and sensors: urban scenes with a T-72, UAV orbits, camera, IMU and LIDAR (Table
+II).
 
 Public API:
     Mesh, load/save in atr.io.mesh; VEHICLES (t72, ifv, truck_6x6, car); Scenario, scenario();

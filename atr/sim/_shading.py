@@ -2,8 +2,9 @@
 
 Written here because no library in the project evaluates band-limited solid textures per ray hit.
 Every pattern is a function of the world position (and, for oriented patterns such as bricks and
-windows, of the surface normal's dominant axis), so it is fixed to the world. Octaves whose wavelength
-is shorter than ~2 pixel footprints fade to their mean: no aliasing flicker at long range.
+windows, of the surface normal's dominant axis), so it is fixed to the world. Octaves whose
+wavelength is shorter than ~2 pixel footprints fade to their mean: no aliasing flicker at long
+range.
 """
 
 from __future__ import annotations
@@ -125,7 +126,8 @@ def fbm(x: float, y: float, z: float, wavelength_m: float, octaves: int, footpri
         w = (lam / footprint_m - 1.5) / 1.5
         w = min(max(w, 0.0), 1.0)
         if w > 0.0:
-            n = value_noise(x / lam + 17.3 * k, y / lam - 9.1 * k, z / lam + 3.7 * k, seed + 101 * k)
+            n = value_noise(x / lam + 17.3 * k, y / lam - 9.1 * k, z / lam + 3.7 * k,
+                            seed + 101 * k)
         else:
             n = 0.5
         total += amp * (w * n + (1.0 - w) * 0.5)
@@ -178,7 +180,8 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
     if mat == M.GROUND:
         mat = _ground_class(x, y, rects, fp, seed)
         s = seed * 7919 + mat * 131
-    # planar coordinates: u horizontal along the surface, v vertical (walls) or the other horizontal axis
+    # planar coordinates: u horizontal along the surface, v vertical (walls) or the other horizontal
+    # axis
     if abs(nz) > 0.7:
         u, v = x, y
     elif abs(nx) > abs(ny):
@@ -224,7 +227,8 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
         r = _mix(0.42, 0.55, tint)
         g = _mix(0.40, 0.47, tint)
         b = _mix(0.36, 0.36, tint)
-        grime = (0.65 + 0.7 * fbm2(u, v, 3.0, 7, fp, s, 0.7)) * (0.8 + 0.4 * fbm2(u, v, 0.3, 3, fp, s + 4))
+        grime = (0.65 + 0.7 * fbm2(u, v, 3.0, 7, fp, s, 0.7)) * (0.8 + 0.4 * fbm2(u, v, 0.3, 3, fp,
+                                                                                  s + 4))
         r *= grime
         g *= grime
         b *= grime
@@ -246,7 +250,8 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
                 g *= 0.62
                 b *= 0.64
     elif mat == M.ROOF:
-        k = (0.45 + 1.1 * fbm2(u, v, 0.5, 6, fp, s, 0.8)) * (0.7 + 0.6 * fbm2(u, v, 5.0, 2, fp, s + 1))
+        k = (0.45 + 1.1 * fbm2(u, v, 0.5, 6, fp, s, 0.8)) * (0.7 + 0.6 * fbm2(u, v, 5.0, 2, fp,
+                                                                              s + 1))
         r, g, b = 0.12 * k, 0.115 * k, 0.11 * k
     elif mat == M.ROOF_TILE:
         ridge = _lines(z, 0.22, 0.05, fp)
@@ -312,9 +317,11 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
         g *= k
         b *= k
     elif mat == M.DIRT:
-        k = (0.4 + 1.2 * fbm2(u, v, 0.4, 6, fp, s, 0.8)) * (0.7 + 0.6 * fbm2(u, v, 4.0, 2, fp, s + 1))
+        k = (0.4 + 1.2 * fbm2(u, v, 0.4, 6, fp, s, 0.8)) * (0.7 + 0.6 * fbm2(u, v, 4.0, 2, fp,
+                                                                             s + 1))
         r, g, b = 0.17 * k, 0.12 * k, 0.075 * k
-    # micro detail: grain a few centimetres across, strong on rough materials; it fades out with range
+    # micro detail: grain a few centimetres across, strong on rough materials; it fades out with
+    # range
     rough = _ROUGHNESS[mat] if mat < _ROUGHNESS.shape[0] else 0.3
     if rough > 0.0:
         d = 2.0 * fbm2(u, v, 0.12, 3, fp, s + 11, 0.9) - 1.0
@@ -369,9 +376,11 @@ def make_rays(dirs_cam: np.ndarray, R: np.ndarray, origin: np.ndarray) -> np.nda
 def surface_points(rays: np.ndarray, t_hit: np.ndarray, prim: np.ndarray, geom: np.ndarray,
                    nrm_in: np.ndarray, mat_static: np.ndarray, mat_target: np.ndarray, target_gid: int,
                    focal_px: float, grazing_cos_min: float, sun: np.ndarray, shadow_bias_m: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                              np.ndarray,
                               np.ndarray]:
-    """Per pixel: hit position, camera-facing normal, material (-1: sky), footprint, range, cos to the sun
+    """Per pixel: hit position, camera-facing normal, material (-1: sky), footprint, range, cos to
+    the sun
     and the shadow ray towards the sun."""
     n = rays.shape[0]
     pos = np.empty((n, 3))
@@ -403,7 +412,8 @@ def surface_points(rays: np.ndarray, t_hit: np.ndarray, prim: np.ndarray, geom: 
             mat[i] = mat_target[min(prim[i], mat_target.shape[0] - 1)]
         else:
             mat[i] = mat_static[min(prim[i], mat_static.shape[0] - 1)]
-        # geometric mean of the anisotropic footprint's axes (1 and 1/cos): blurs less than the long axis
+        # geometric mean of the anisotropic footprint's axes (1 and 1/cos): blurs less than the long
+        # axis
         fp[i] = d / focal_px / np.sqrt(max(c, grazing_cos_min))
         dist[i] = d
         ndl[i] = nx * sun[0] + ny * sun[1] + nz * sun[2]

@@ -1,8 +1,8 @@
 """Simulator parameters: camera, platform, IMU, LIDAR, lighting and noise.
 
-Every field has its units and where its value comes from. The paper (Kechagias-Stamatis & Aouf) does not
-give its OpenFlight camera or IMU; values it does give are cited by section, the others are chosen and
-explained in docs/sim.md.
+Every field has its units and where its value comes from. The paper (Kechagias-Stamatis & Aouf) does
+not give its OpenFlight camera or IMU; values it does give are cited by section, the others are
+chosen and explained in docs/sim.md.
 """
 
 from __future__ import annotations
@@ -13,14 +13,14 @@ import numpy as np
 
 from atr.errors import ConfigError
 
-# Camera axes (OpenCV: x right, y down, z forward) expressed in the IMU body frame (x forward along the
-# optical axis, y left, z up): columns are the camera's x, y, z axes.
+# Camera axes (OpenCV: x right, y down, z forward) expressed in the IMU body frame (x forward along
+# the optical axis, y left, z up): columns are the camera's x, y, z axes.
 _R_IMU_CAM_NOMINAL = ((0.0, 0.0, 1.0), (-1.0, 0.0, 0.0), (0.0, -1.0, 0.0))
 
 
 def _default_T_imu_cam() -> tuple[tuple[float, ...], ...]:
-    # Nominal axis swap plus a small mounting misalignment (0.2 deg about each axis) and a 4 cm lever arm:
-    # an integrator that forgets the extrinsic shows it.
+    # Nominal axis swap plus a small mounting misalignment (0.2 deg about each axis) and a 4 cm
+    # lever arm: an integrator that forgets the extrinsic shows it.
     a = np.deg2rad(0.2)
     c, s = np.cos(a), np.sin(a)
     Rx = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
@@ -39,43 +39,57 @@ class SimConfig:
     # --- camera (pinhole, RGB8) -----------------------------------------------------------------
     width_px: int = 1280  # image width, pixels (issue: 1280x960 default)
     height_px: int = 960  # image height, pixels
-    focal_px: float = 2000.0  # focal length, pixels: a 6.9 m T-72 hull spans 69 px at 200 m (>= 50 px)
-    # --- platform ----------------------------------------------------------------------------------
+    # focal length, pixels: a 6.9 m T-72 hull spans 69 px at 200 m (>= 50 px)
+    focal_px: float = 2000.0
+    # --- platform ---------------------------------------------------------------------------------
     speed_mps: float = 15.0  # ground speed on the orbit, m/s (small UAV, 10-20 m/s)
-    baseline_to_range: float = 0.075  # frame interval x speed / range: ~4.3 deg of parallax per frame pair
-    min_altitude_m: float = 4.0  # lowest camera height above the target's ground (makes 0 deg obliquity flyable)
-    position_disturbance_m: float = 0.6  # amplitude of gust-driven position wander, metres (per axis)
+    # frame interval x speed / range: ~4.3 deg of parallax per frame pair
+    baseline_to_range: float = 0.075
+    # lowest camera height above the target's ground (makes 0 deg obliquity flyable)
+    min_altitude_m: float = 4.0
+    # amplitude of gust-driven position wander, metres (per axis)
+    position_disturbance_m: float = 0.6
     roll_disturbance_deg: float = 2.5  # amplitude of camera-head roll wobble, degrees
     pointing_bias_deg: float = 0.6  # std of the constant gimbal pointing error per run, degrees
     pointing_jitter_deg: float = 0.25  # amplitude of the slow gimbal pointing wobble, degrees
-    aim_offset_frac: float = 0.03  # std of orbit-centre offset from the target, as a fraction of range
-    # --- IMU on the camera head (defaults: ADIS16448, EuRoC sensor.yaml) --------------------------------
+    # std of orbit-centre offset from the target, as a fraction of range
+    aim_offset_frac: float = 0.03
+    # --- IMU on the camera head (defaults: ADIS16448, EuRoC sensor.yaml) --------------------------
     imu_rate_hz: float = 200.0  # sample rate, Hz (EuRoC imu0 rate_hz)
     gyro_noise_density: float = 1.6968e-04  # rad/s/sqrt(Hz) (EuRoC imu0 gyroscope_noise_density)
     gyro_random_walk: float = 1.9393e-05  # rad/s^2/sqrt(Hz) (EuRoC imu0 gyroscope_random_walk)
     accel_noise_density: float = 2.0e-3  # m/s^2/sqrt(Hz) (EuRoC imu0 accelerometer_noise_density)
     accel_random_walk: float = 3.0e-3  # m/s^3/sqrt(Hz) (EuRoC imu0 accelerometer_random_walk)
-    gyro_bias_sigma_radps: float = 7.0e-5  # turn-on bias std, rad/s (ADIS16448 in-run stability 14.5 deg/h)
-    accel_bias_sigma_mps2: float = 2.5e-3  # turn-on bias std, m/s^2 (ADIS16448 in-run stability 0.25 mg)
-    gravity_mps2: float = 9.80665  # magnitude of gravity, m/s^2, world -z (standard gravity, CGPM 1901)
+    # turn-on bias std, rad/s (ADIS16448 in-run stability 14.5 deg/h)
+    gyro_bias_sigma_radps: float = 7.0e-5
+    # turn-on bias std, m/s^2 (ADIS16448 in-run stability 0.25 mg)
+    accel_bias_sigma_mps2: float = 2.5e-3
+    # magnitude of gravity, m/s^2, world -z (standard gravity, CGPM 1901)
+    gravity_mps2: float = 9.80665
     T_imu_cam: tuple[tuple[float, ...], ...] = field(default_factory=_default_T_imu_cam)
     """IMU-from-camera 4x4: the camera's pose in the IMU frame (rigid, both on the gimbal head)."""
-    # --- LIDAR (baseline sensor, paper Table II) ---------------------------------------------------------
-    lidar_grid: int = 512  # returns per scan line and lines per scan: 512^2 = 262k points (paper: ~260k)
-    lidar_divergence_mrad: float = 1.5  # full-angle beam divergence, mrad: 7.5 cm spot at 50 m, 30 cm at 200 m
+    # --- LIDAR (baseline sensor, paper Table II) --------------------------------------------------
+    # returns per scan line and lines per scan: 512^2 = 262k points (paper: ~260k)
+    lidar_grid: int = 512
+    # full-angle beam divergence, mrad: 7.5 cm spot at 50 m, 30 cm at 200 m
+    lidar_divergence_mrad: float = 1.5
     lidar_aperture_m: float = 0.02  # spot diameter at the exit aperture, metres
     lidar_sub_rays: int = 7  # sub-rays averaged per return over the spot footprint (mixed pixels)
     lidar_range_noise_m: float = 0.02  # 1-sigma range noise, metres
     lidar_max_range_m: float = 1500.0  # no return beyond, metres
-    lidar_shot_quantum_m: float = 1e-3  # shot noise: range = q * Poisson(range / q), metres (§III-D-6)
-    # --- lighting and atmosphere ------------------------------------------------------------------------
-    sun_elevation_deg: tuple[float, float] = (35.0, 60.0)  # range the world's sun elevation is drawn from
+    # shot noise: range = q * Poisson(range / q), metres (§III-D-6)
+    lidar_shot_quantum_m: float = 1e-3
+    # --- lighting and atmosphere ------------------------------------------------------------------
+    # range the world's sun elevation is drawn from
+    sun_elevation_deg: tuple[float, float] = (35.0, 60.0)
     haze_visibility_m: float | None = 8000.0  # meteorological visibility, metres (None: no haze)
     exposure: float = 1.7  # linear radiance to [0, 1] scale before the sRGB curve
-    shot_noise_full_well: float = 600.0  # photo-electrons at full scale (Poisson shot noise, §III-D-6)
-    # --- truth -----------------------------------------------------------------------------------------
+    # photo-electrons at full scale (Poisson shot noise, §III-D-6)
+    shot_noise_full_well: float = 600.0
+    # --- truth ------------------------------------------------------------------------------------
     target_samples: int = 1200  # surface samples used for visible_fraction
-    present_min_visible_fraction: float = 0.1  # a frame 'has the target' at or above this visible fraction
+    # a frame 'has the target' at or above this visible fraction
+    present_min_visible_fraction: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("width_px", "height_px", "lidar_grid", "lidar_sub_rays", "target_samples"):

@@ -1,9 +1,10 @@
 """A simulated flight: frames of camera image, IMU samples, optional LIDAR scan and truth.
 
-Timing: frames come every `SimConfig.frame_interval_s(range)` seconds (0.25 s at 50 m, 0.5 s at 100 m,
-1 s at 200 m: the baseline between consecutive frames is 7.5 % of the range, ~4.3 deg of parallax). IMU
-samples come at 200 Hz on a grid that contains every frame time. stamp_ns = 1e9 + t x 1e9, with t the
-seconds since the first frame (sensor time of the simulated flight; the first frame is at 1 s).
+Timing: frames come every `SimConfig.frame_interval_s(range)` seconds (0.25 s at 50 m, 0.5 s at 100
+m, 1 s at 200 m: the baseline between consecutive frames is 7.5 % of the range, ~4.3 deg of
+parallax). IMU samples come at 200 Hz on a grid that contains every frame time. stamp_ns = 1e9 + t x
+1e9, with t the seconds since the first frame (sensor time of the simulated flight; the first frame
+is at 1 s).
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ class TargetTruth:
 
     Attributes:
         name: target name ("t72" unless a custom mesh replaced it).
-        T_world_target: (4, 4) world-from-target pose (target frame: origin on the ground, x forward).
+        T_world_target: (4, 4) world-from-target pose (target frame: origin on the ground, x
+        forward).
         visible_fraction: share of its camera-facing surface seen in this frame (0..1).
     """
 
@@ -76,7 +78,8 @@ def imu_samples(orbit: Orbit, t_s: np.ndarray, cfg: SimConfig, rng: np.random.Ge
     """Gyro and accelerometer readings at times t_s, from the analytic trajectory.
 
     Specific force f = R_world_imu^T (a_world - g_world), g_world = (0, 0, -g). With rng, adds the
-    turn-on bias, the bias random walk and white noise (discrete-time: sigma_d = density x sqrt(rate)).
+    turn-on bias, the bias random walk and white noise (discrete-time: sigma_d = density x
+    sqrt(rate)).
     """
     st = orbit.state(t_s)
     g = np.array([0.0, 0.0, -cfg.gravity_mps2])
@@ -108,9 +111,11 @@ def simulate_flight(scenario: Scenario, *, seed: int = 0, frames: int | None = N
         target_mesh: replaces the T-72 (vehicle frame: z up, x forward, metres).
         clutter_meshes: extra confuser vehicles placed near the target.
         lidar: also produce a LIDAR scan per frame.
-        noise: noise spec ("shot", "gaussian:10", "gaussian:30", "shot,gaussian:10"; see atr.sim.noise).
+        noise: noise spec ("shot", "gaussian:10", "gaussian:30", "shot,gaussian:10"; see
+        atr.sim.noise).
         config: simulator settings.
-        target_name: name of a custom target in the truth (default "target"; "t72" for the built-in).
+        target_name: name of a custom target in the truth (default "target"; "t72" for the
+        built-in).
         imu_noise: add IMU bias, bias random walk and white noise (False: exact readings).
         world: a world already built for this scenario and seed (skips building it again).
 
@@ -135,7 +140,8 @@ def simulate_flight(scenario: Scenario, *, seed: int = 0, frames: int | None = N
     # the whole run's IMU noise is drawn up front so that `frames` does not change any value
     n_imu = (scenario.n_frames - 1) * per_frame + 1
     t_imu = np.arange(max(n_imu, (n_frames - 1) * per_frame + 1)) / cfg.imu_rate_hz
-    imu_rng = np.random.default_rng([seed, scenario.scenario, scenario.run, 1]) if imu_noise else None
+    imu_rng = np.random.default_rng([seed, scenario.scenario, scenario.run,
+                                     1]) if imu_noise else None
     imu = imu_samples(orbit, t_imu, cfg, imu_rng)
     T_imu_cam = cfg.T_imu_cam_matrix
     K = cfg.K
@@ -152,11 +158,13 @@ def simulate_flight(scenario: Scenario, *, seed: int = 0, frames: int | None = N
         image = to_srgb8(lin)
         if spec.active:
             image = noisy_image(lin, image, spec, cfg.shot_noise_full_well,
-                                np.random.default_rng([seed, scenario.scenario, scenario.run, 2, seq]))
+                                np.random.default_rng([seed, scenario.scenario, scenario.run, 2,
+                                                       seq]))
         cloud = None
         if lidar:
             lrng = np.random.default_rng([seed, scenario.scenario, scenario.run, 3, seq])
-            cloud = renderer.lidar_scan(T_world_cam, scenario.lidar_resolution_m, scenario.range_m, lrng)
+            cloud = renderer.lidar_scan(T_world_cam, scenario.lidar_resolution_m, scenario.range_m,
+                                        lrng)
             if spec.active:
                 cloud = noisy_cloud(cloud, T_world_cam[:3, 3], spec, cfg.lidar_shot_quantum_m, lrng)
         truth = [TargetTruth(world.target_name, world.T_world_target.copy(),

@@ -1,9 +1,10 @@
 """The materials table: what each `Mesh.material` index means and how it looks.
 
-Textures are procedural and solid (a function of the world position of the surface point, never of the
-view), so a surface looks the same from every viewpoint and a feature tracker sees the same corners move
-with the geometry. Patterns are band-limited to the pixel footprint so that they do not alias into
-flicker at long range. The texture code is in `_shading.py`; this module names the indices.
+Textures are procedural and solid (a function of the world position of the surface point, never of
+the view), so a surface looks the same from every viewpoint and a feature tracker sees the same
+corners move with the geometry. Patterns are band-limited to the pixel footprint so that they do not
+alias into flicker at long range. The texture code is in `_shading.py`; this module names the
+indices.
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
-"""Triangle meshes with a material per triangle, and the primitives the simulated world is built from.
+"""Triangle meshes with a material per triangle, and the primitives the simulated world is built
+from.
 
 Every mesh is in metres, z up, x forward (vehicles) and carries one material index per triangle into
-`atr.sim.materials.MATERIALS`. Primitives are closed where that is cheap, but nothing downstream needs
-watertight meshes: the renderer and the LIDAR only look at the first surface a ray meets.
+`atr.sim.materials.MATERIALS`. Primitives are closed where that is cheap, but nothing downstream
+needs watertight meshes: the renderer and the LIDAR only look at the first surface a ray meets.
 """
 
 from __future__ import annotations
@@ -95,7 +96,7 @@ def merge(meshes: Sequence[Mesh]) -> Mesh:
     )
 
 
-# ---------------------------------------------------------------------------------------------- transforms
+# transforms ---------------------------------------------------------------------------------------
 
 
 def rot_z(yaw_rad: float) -> np.ndarray:
@@ -130,7 +131,7 @@ def place(mesh: Mesh, x: float, y: float, z: float = 0.0, yaw_rad: float = 0.0) 
     return mesh.transformed(pose(rot_z(yaw_rad), (x, y, z)))
 
 
-# ---------------------------------------------------------------------------------------------- primitives
+# primitives ---------------------------------------------------------------------------------------
 
 
 def box(size: Sequence[float], center: Sequence[float] = (0, 0, 0), material: int = 0,
@@ -138,7 +139,8 @@ def box(size: Sequence[float], center: Sequence[float] = (0, 0, 0), material: in
     """Axis-aligned box of size (sx, sy, sz) centred at center; bottom=False leaves the floor open."""
     sx, sy, sz = (0.5 * float(s) for s in size)
     v = np.array([[-sx, -sy, -sz], [sx, -sy, -sz], [sx, sy, -sz], [-sx, sy, -sz],
-                  [-sx, -sy, sz], [sx, -sy, sz], [sx, sy, sz], [-sx, sy, sz]]) + np.asarray(center, float)
+                  [-sx, -sy, sz], [sx, -sy, sz], [sx, sy, sz], [-sx, sy, sz]]) + np.asarray(center,
+                                                                                            float)
     t = [[4, 5, 6], [4, 6, 7],            # top
          [0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]]
     if bottom:
@@ -175,7 +177,8 @@ def cylinder(radius: float, length: float, segments: int = 16, material: int = 0
     """Cylinder (or frustum when radius_end is given) along axis x, y or z, centred at center."""
     r1 = float(radius) if radius_end is None else float(radius_end)
     a = np.linspace(0, 2 * np.pi, segments, endpoint=False)
-    ring0 = np.column_stack([radius * np.cos(a), radius * np.sin(a), np.full(segments, -0.5 * length)])
+    ring0 = np.column_stack([radius * np.cos(a), radius * np.sin(a), np.full(segments,
+                                                                             -0.5 * length)])
     ring1 = np.column_stack([r1 * np.cos(a), r1 * np.sin(a), np.full(segments, 0.5 * length)])
     v = np.vstack([ring0, ring1, [[0, 0, -0.5 * length], [0, 0, 0.5 * length]]])
     tris = []
@@ -220,7 +223,8 @@ def ellipsoid(radii: Sequence[float], center: Sequence[float] = (0, 0, 0), mater
 
 def octahedron(radius: float, center: Sequence[float] = (0, 0, 0), material: int = 0) -> Mesh:
     """Regular octahedron (a cheap closed blob: leaf clumps)."""
-    v = radius * np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    v = radius * np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]],
+                          float)
     t = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
     return Mesh(v + np.asarray(center, float), np.array(t), np.full(8, material))
 

@@ -1,14 +1,18 @@
 """Sensor noise of the paper's robustness tests (§III-D-6 shot noise, §III-D-7 Gaussian noise).
 
-Noise spec strings (comma separated, case-insensitive): "none", "shot", "gaussian:10" (sigma in cm; also
-"gauss:10", "gaussian10", "gaussian:10cm"). Example: "shot,gaussian:30".
+Noise spec strings (comma separated, case-insensitive): "none", "shot", "gaussian:10" (sigma in cm;
+also "gauss:10", "gaussian10", "gaussian:10cm"). Example: "shot,gaussian:30".
 
-What sigma in cm means for each sensor (the paper applies one sigma to both the images and the LIDAR):
-- LIDAR: zero-mean Gaussian noise with that standard deviation in metres on each coordinate of each point.
-- Images: the same number read on the image's own scale, as a fraction of full scale: sigma = 10 cm gives
-  Gaussian noise of 0.10 x 255 = 25.5 grey levels per channel, 30 cm gives 76.5 levels. (A metre-valued
-  sigma has no direct meaning for pixels; reading 0.10 as 10 % of full scale is what an image-noise
-  function taking the number 0.1 does, and keeps the two arms on the same numeric setting.)
+What sigma in cm means for each sensor (the paper applies one sigma to both the images and the
+LIDAR):
+- LIDAR: zero-mean Gaussian noise with that standard deviation in metres on each coordinate of each
+  point.
+- Images: the same number read on the image's own scale, as a fraction of full scale: sigma = 10 cm
+  gives Gaussian noise of 0.10 x 255 = 25.5 grey levels per channel, 30 cm gives 76.5 levels. (A
+  metre-valued sigma has no direct meaning for pixels; reading 0.10 as 10 % of full scale is what an
+  image-noise function taking the number 0.1 does, and keeps the two arms on the same numeric
+  setting.)
+
 Shot noise: images draw photo-electrons from a Poisson law (full_well electrons at full scale); LIDAR
 ranges become q x Poisson(range / q) (paper eq. 8 in spirit: Poisson noise on the LIDAR depth).
 """
@@ -29,7 +33,8 @@ class NoiseSpec:
 
     Attributes:
         shot: Poisson shot noise on images and LIDAR ranges.
-        gaussian_sigma_m: Gaussian sigma, metres (0: none); images use it as a fraction of full scale.
+        gaussian_sigma_m: Gaussian sigma, metres (0: none); images use it as a fraction of full
+        scale.
     """
 
     shot: bool = False

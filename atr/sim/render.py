@@ -1,8 +1,9 @@
-"""Camera rendering, target visibility and LIDAR scans of a built world, by ray casting (Open3D/Embree).
+"""Camera rendering, target visibility and LIDAR scans of a built world, by ray casting
+(Open3D/Embree).
 
 One primary ray per pixel through a pinhole camera finds the surface, a second ray towards the sun
-decides its shadow; the colour is the procedural albedo (`_shading.py`) lit by sun and sky, attenuated
-by haze with range, mapped to sRGB.
+decides its shadow; the colour is the procedural albedo (`_shading.py`) lit by sun and sky,
+attenuated by haze with range, mapped to sRGB.
 """
 
 from __future__ import annotations
@@ -46,9 +47,10 @@ class Renderer:
         self._dirs_cam = np.column_stack([(u.ravel() - self.K[0, 2]) / self.K[0, 0],
                                           (v.ravel() - self.K[1, 2]) / self.K[1, 1],
                                           np.ones(u.size)])  # z = 1: t_hit is the z-depth
-        self._samples = target_samples(world.target_local, world.T_world_target, self.cfg.target_samples)
+        self._samples = target_samples(world.target_local, world.T_world_target,
+                                       self.cfg.target_samples)
 
-    # ------------------------------------------------------------------------------------------ camera
+    # camera ---------------------------------------------------------------------------------------
 
     def render(self, T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Render one frame.
@@ -62,7 +64,8 @@ class Renderer:
         """
         cfg = self.cfg
         T = np.asarray(T_world_cam, dtype=np.float64)
-        rays = make_rays(self._dirs_cam, np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
+        rays = make_rays(self._dirs_cam, np.ascontiguousarray(T[:3, :3]),
+                         np.ascontiguousarray(T[:3, 3]))
         ans = self.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         t = ans["t_hit"].numpy()
         pos, nrm, mat, fp, dist, ndl, sh = surface_points(
@@ -75,12 +78,13 @@ class Renderer:
         direct = np.zeros(t.size)
         direct[lit] = np.where(occluded, 0.0, ndl[lit])
         haze_k = 0.0 if cfg.haze_visibility_m is None else 3.912 / cfg.haze_visibility_m
-        img = compose(mat, pos, nrm, fp, dist, direct, rays, self.world.ground_rects, self.world.seed,
+        img = compose(mat, pos, nrm, fp, dist, direct, rays, self.world.ground_rects,
+                      self.world.seed,
                       _SUN_RGB, _SKY_RGB, _HAZE_RGB, _ZENITH_RGB, haze_k, cfg.exposure)
         depth = (t.astype(np.float32)).reshape(cfg.height_px, cfg.width_px)
         return img.reshape(cfg.height_px, cfg.width_px, 3), depth
 
-    # ------------------------------------------------------------------------------------------ truth
+    # truth ----------------------------------------------------------------------------------------
 
     def visible_fraction(self, T_world_cam: np.ndarray) -> float:
         """Share of the target's camera-facing surface seen in this frame (0..1), by ray casting."""
@@ -102,11 +106,12 @@ class Renderer:
         pc = (pts - o) @ T[:3, :3]
         in_front = pc[:, 2] > 0.1
         uv = pc[:, :2] / np.where(in_front, pc[:, 2], 1.0)[:, None] * self.K[0, 0] + self.K[:2, 2]
-        inside = in_front & (uv[:, 0] >= 0) & (uv[:, 0] <= self.cfg.width_px - 1) & (uv[:, 1] >= 0) & (
+        inside = in_front & (uv[:, 0] >= 0) & (uv[:, 0] <= self.cfg.width_px - 1) & (uv[:,
+                                                                                        1] >= 0) & (
             uv[:, 1] <= self.cfg.height_px - 1)
         return float((seen & inside).sum() / n_self)
 
-    # ------------------------------------------------------------------------------------------ LIDAR
+    # LIDAR ----------------------------------------------------------------------------------------
 
     def lidar_scan(self, T_world_sensor: np.ndarray, spacing_m: float, range_m: float,
                    rng: np.random.Generator) -> np.ndarray:
@@ -114,7 +119,8 @@ class Renderer:
 
         Each beam's spot grows with range (aperture + range x divergence); its return is the mean of
         `lidar_sub_rays` sub-ray ranges spread over the spot, so a spot straddling an edge returns a
-        point between the two surfaces (mixed pixel). Sub-rays that miss are ignored; a beam whose sub-rays
+        point between the two surfaces (mixed pixel). Sub-rays that miss are ignored; a beam whose
+        sub-rays
         all miss gives no return. Gaussian range noise is added.
 
         Args:
@@ -154,7 +160,8 @@ class Renderer:
         rays[:, 3:] = centre
         t0 = self.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))["t_hit"].numpy().astype(np.float64)
         t0 = np.where(np.isfinite(t0), t0, range_m)
-        half_angle = 0.5 * (cfg.lidar_aperture_m / np.maximum(t0, 1.0) + cfg.lidar_divergence_mrad * 1e-3)
+        half_angle = 0.5 * (cfg.lidar_aperture_m / np.maximum(t0,
+                                                              1.0) + cfg.lidar_divergence_mrad * 1e-3)
         sub = (centre[:, None, :] + half_angle[:, None, None] * (
             offs[None, :, 0:1] * e1[:, None, :] + offs[None, :, 1:2] * e2[:, None, :]))
         sub /= np.linalg.norm(sub, axis=2, keepdims=True)

@@ -6,9 +6,9 @@
 | 2        | 4    | 0, 15, 30, 45 deg  | 100 m | 18 cm            | 327 / 364                  |
 | 3        | 1    | 30 deg             | 200 m | 30 cm            | 78 / 78                    |
 
-Obliquity is the elevation angle of the line of sight from the target to the camera (0 deg: level with
-the target, 90 deg: straight overhead). A scene is a frame pair (frame k, frame k+1), so a run of
-n_scenes scenes has n_scenes + 1 frames. A scenario's scenes are split evenly over its runs.
+Obliquity is the elevation angle of the line of sight from the target to the camera (0 deg: level
+with the target, 90 deg: straight overhead). A scene is a frame pair (frame k, frame k+1), so a run
+of n_scenes scenes has n_scenes + 1 frames. A scenario's scenes are split evenly over its runs.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 from atr.errors import ConfigError
 
-# scenario -> (range m, obliquities of its runs in deg, LIDAR resolution m, scenes total, scenes with target)
+# scenario -> (range m, obliquities of its runs in deg, LIDAR resolution m, scenes total, scenes
+# with target)
 TABLE_II: dict[int, tuple[float, tuple[float, ...], float, int, int]] = {
     1: (50.0, (0.0, 15.0, 30.0, 45.0), 0.11, 345, 334),
     2: (100.0, (0.0, 15.0, 30.0, 45.0), 0.18, 364, 327),
@@ -38,7 +39,8 @@ class Scenario:
         lidar_resolution_m: LIDAR point spacing on the target, metres (Table II "resolution").
         absent_ratio: share of the scenario's scenes without the target (Table II).
         n_runs: runs in this scenario.
-        run_obliquities_deg: obliquities of every run of the scenario (the world keeps all their orbits clear).
+        run_obliquities_deg: obliquities of every run of the scenario (the world keeps all their
+        orbits clear).
     """
 
     scenario: int

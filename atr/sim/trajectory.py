@@ -1,12 +1,14 @@
 """The UAV's camera-head trajectory as closed-form functions of time, and its exact IMU readings.
 
-Position is a circular orbit plus a sum of sinusoidal disturbances; attitude is yaw/pitch aimed at the
-orbit centre (from the position, by atan2) plus sinusoidal pointing error and roll wobble. Velocity,
-acceleration and body angular rate are the analytic derivatives of these functions (never finite
-differences), so integrating the noise-free IMU reproduces the pose to integration error only.
+Position is a circular orbit plus a sum of sinusoidal disturbances; attitude is yaw/pitch aimed at
+the orbit centre (from the position, by atan2) plus sinusoidal pointing error and roll wobble.
+Velocity, acceleration and body angular rate are the analytic derivatives of these functions (never
+finite differences), so integrating the noise-free IMU reproduces the pose to integration error
+only.
 
-Frames: the trajectory is that of the IMU body (x forward along the optical axis, y left, z up), world z
-up; attitude R_world_imu = Rz(yaw) @ Ry(pitch) @ Rx(roll) (paper eq. 3 with u = yaw, v = pitch, w = roll).
+Frames: the trajectory is that of the IMU body (x forward along the optical axis, y left, z up),
+world z up; attitude R_world_imu = Rz(yaw) @ Ry(pitch) @ Rx(roll) (paper eq. 3 with u = yaw, v =
+pitch, w = roll).
 """
 
 from __future__ import annotations
@@ -51,7 +53,8 @@ class Orbit:
         rate_radps: signed angular rate around the centre, rad/s (sign: direction).
         phase0_rad: azimuth of the UAV at t = 0, rad.
         pos_amp: (3, K) disturbance amplitudes, metres; pos_freq (3, K) Hz; pos_phase (3, K) rad.
-        att_amp: (3, K) attitude disturbance amplitudes (yaw, pitch, roll), rad; att_freq, att_phase alike.
+        att_amp: (3, K) attitude disturbance amplitudes (yaw, pitch, roll), rad; att_freq,
+        att_phase alike.
         att_bias: (3,) constant pointing error (yaw, pitch, roll), rad.
     """
 
@@ -76,7 +79,8 @@ class Orbit:
         c, s = np.cos(ang), np.sin(ang)
         p = np.column_stack([self.radius_m * c, self.radius_m * s, np.full_like(t, self.height_m)])
         v = np.column_stack([-self.radius_m * w * s, self.radius_m * w * c, np.zeros_like(t)])
-        a = np.column_stack([-self.radius_m * w * w * c, -self.radius_m * w * w * s, np.zeros_like(t)])
+        a = np.column_stack([-self.radius_m * w * w * c, -self.radius_m * w * w * s,
+                             np.zeros_like(t)])
         dp, dv, da = _waves(t, self.pos_amp, self.pos_freq, self.pos_phase)
         p = p + dp + self.center
         v = v + dv
@@ -151,18 +155,22 @@ def make_orbit(sc: Scenario, target_xyz: np.ndarray, rng: np.random.Generator,
                config: SimConfig, aim_height_m: float = 1.1) -> Orbit:
     """The orbit of one run: range and obliquity from the scenario, disturbances drawn from rng.
 
-    The orbit centre (the gimbal's aim point) is the target's centre offset by a small random error; the
-    camera height is range x sin(obliquity) above the aim point but at least config.min_altitude_m above
+    The orbit centre (the gimbal's aim point) is the target's centre offset by a small random
+    error; the
+    camera height is range x sin(obliquity) above the aim point but at least config.min_altitude_m
+    above
     the target's ground.
     """
     ob = np.deg2rad(sc.obliquity_deg)
     offset = rng.normal(0.0, config.aim_offset_frac * sc.range_m, 2)
-    center = np.array([target_xyz[0] + offset[0], target_xyz[1] + offset[1], target_xyz[2] + aim_height_m])
+    center = np.array([target_xyz[0] + offset[0], target_xyz[1] + offset[1],
+                       target_xyz[2] + aim_height_m])
     height = max(sc.range_m * np.sin(ob), config.min_altitude_m - aim_height_m)
     radius = np.sqrt(max(sc.range_m**2 - height**2, 1.0))
     direction = 1.0 if rng.random() < 0.5 else -1.0
     rate = direction * config.speed_mps / radius
-    pos_amp = rng.uniform(0.3, 1.0, (3, _N_WAVES)) * config.position_disturbance_m / np.sqrt(_N_WAVES)
+    pos_amp = rng.uniform(0.3, 1.0, (3,
+                                     _N_WAVES)) * config.position_disturbance_m / np.sqrt(_N_WAVES)
     pos_freq = rng.uniform(0.05, 0.4, (3, _N_WAVES))
     pos_phase = rng.uniform(0, 2 * np.pi, (3, _N_WAVES))
     jit = np.deg2rad(config.pointing_jitter_deg)
@@ -174,5 +182,6 @@ def make_orbit(sc: Scenario, target_xyz: np.ndarray, rng: np.random.Generator,
     att_phase = rng.uniform(0, 2 * np.pi, (3, _N_WAVES))
     att_bias = rng.normal(0.0, np.deg2rad(config.pointing_bias_deg), 3)
     att_bias[2] = 0.0
-    return Orbit(center, float(radius), float(height), float(rate), float(rng.uniform(0, 2 * np.pi)),
+    return Orbit(center, float(radius), float(height), float(rate), float(rng.uniform(0,
+                                                                                      2 * np.pi)),
                  pos_amp, pos_freq, pos_phase, att_amp, att_freq, att_phase, att_bias)

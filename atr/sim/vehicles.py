@@ -2,8 +2,8 @@
 
 Frame of every vehicle: origin on the ground under the hull centre, x forward, y left, z up, metres.
 Proportions follow published dimensions (T-72: hull 6.86 m long, 3.59 m wide over the side skirts,
-2.19 m to the turret roof, 125 mm gun overhanging the hull front by ~2.5 m; BMP-2-like IFV 6.7 x 3.15 x
-2.45 m; Ural-4320-like 6x6 truck 7.4 x 2.5 x 2.9 m; a family sedan 4.5 x 1.8 x 1.45 m).
+2.19 m to the turret roof, 125 mm gun overhanging the hull front by ~2.5 m; BMP-2-like IFV 6.7 x
+3.15 x 2.45 m; Ural-4320-like 6x6 truck 7.4 x 2.5 x 2.9 m; a family sedan 4.5 x 1.8 x 1.45 m).
 """
 
 from __future__ import annotations
@@ -46,7 +46,8 @@ def _wheel(x: float, y: float, z: float, r: float, width: float, hub_mat: int, t
     """A wheel along y: tyre cylinder plus a slightly proud hub disc on the outer side."""
     side = np.sign(y) if y != 0 else 1.0
     tyre = cylinder(r, width, segments, tyre_mat, axis="y", center=(x, y, z))
-    hub = cylinder(0.55 * r, 0.02, segments, hub_mat, axis="y", center=(x, y + side * (0.5 * width + 0.01), z))
+    hub = cylinder(0.55 * r, 0.02, segments, hub_mat, axis="y", center=(x,
+                                                                        y + side * (0.5 * width + 0.01), z))
     return merge([tyre, hub])
 
 
@@ -60,14 +61,16 @@ def _both_sides(mesh: Mesh) -> Mesh:
 
 
 def t72() -> Mesh:
-    """The T-72 main battle tank: hull, domed turret, 125 mm gun, road wheels, tracks, skirts, drums.
+    """The T-72 main battle tank: hull, domed turret, 125 mm gun, road wheels, tracks, skirts,
+    drums.
 
     Returns:
         Mesh in the vehicle frame (origin on the ground under the hull centre, x forward), metres.
     """
     parts: list[Mesh] = []
     # hull between the tracks: lower hull, upper glacis at 68 deg from vertical, flat roof at 1.45 m
-    hull_prof = np.array([[-3.30, 0.47], [3.00, 0.47], [3.43, 0.95], [2.15, 1.45], [-3.43, 1.45], [-3.43, 0.95]])
+    hull_prof = np.array([[-3.30, 0.47], [3.00, 0.47], [3.43, 0.95], [2.15, 1.45], [-3.43, 1.45],
+                          [-3.43, 0.95]])
     parts.append(extrude_profile(hull_prof, -1.12, 1.12, M.CAMO))
     # sponsons above the tracks, out to the fenders
     spon_prof = np.array([[-3.43, 0.95], [3.43, 0.95], [2.15, 1.45], [-3.43, 1.45]])
@@ -86,11 +89,14 @@ def t72() -> Mesh:
     for x in (-2.12, -1.28, -0.44, 0.40, 1.24, 2.08):
         side.append(_wheel(x, 1.42, 0.44, 0.375, 0.46, M.METAL, M.RUBBER))
     # stowage boxes and external fuel tanks on the fender
-    for x0, length, h in ((-2.9, 0.9, 0.38), (-1.8, 1.1, 0.42), (-0.5, 0.8, 0.36), (0.55, 1.0, 0.40)):
+    for x0, length, h in ((-2.9, 0.9, 0.38), (-1.8, 1.1, 0.42), (-0.5, 0.8, 0.36), (0.55, 1.0,
+                                                                                    0.40)):
         side.append(box((length, 0.36, h), (x0 + 0.5 * length, 1.50, 0.97 + 0.5 * h), M.CAMO))
     parts.append(_both_sides(merge(side)))
     # engine deck grilles and the driver's hatch on the glacis
-    parts.append(box((1.6, 1.6, 0.05), (-2.4, 0.0, 1.475), M.METAL))
+    parts.append(box((1.6, 1.6, 0.03), (-2.4, 0.0, 1.465), M.METAL))
+    for k in range(7):  # louvres of the engine-deck grille
+        parts.append(box((0.1, 1.5, 0.05), (-3.1 + 0.23 * k, 0.0, 1.49), M.CAMO))
     parts.append(box((0.8, 1.0, 0.04), (-1.45, 0.0, 1.47), M.CAMO))
     parts.append(box((0.45, 0.55, 0.1), (2.0, 0.0, 1.48), M.CAMO))
     # domed cast turret, slightly forward of the hull centre
@@ -106,8 +112,10 @@ def t72() -> Mesh:
     parts.append(cylinder(0.18, 0.3, 14, M.METAL, axis="x", center=(1.25, -0.62, 2.02)))
     parts.append(box((0.35, 0.25, 0.28), (0.95, 0.62, 2.02), M.CAMO))
     parts.append(cylinder(0.09, 1.6, 10, M.CAMO, axis="y", center=(-1.30, 0.1, 1.88)))
-    # 125 mm gun: mantlet, barrel with thermal sleeve and fume extractor, muzzle 2.5 m past the hull front
-    parts.append(cylinder(0.30, 0.55, 16, M.CAMO, axis="x", center=(1.70, 0.0, 1.80), radius_end=0.20))
+    # 125 mm gun: mantlet, barrel with thermal sleeve and fume extractor, muzzle 2.5 m past the hull
+    # front
+    parts.append(cylinder(0.30, 0.55, 16, M.CAMO, axis="x", center=(1.70, 0.0, 1.80),
+                          radius_end=0.20))
     parts.append(cylinder(0.105, 2.6, 12, M.METAL, axis="x", center=(3.25, 0.0, 1.80)))
     parts.append(cylinder(0.15, 0.55, 12, M.METAL, axis="x", center=(4.05, 0.0, 1.80)))
     parts.append(cylinder(0.085, 1.45, 12, M.METAL, axis="x", center=(5.20, 0.0, 1.80)))
@@ -155,7 +163,8 @@ def truck_6x6(paint: int = M.OLIVE) -> Mesh:
     parts.append(box((4.7, 2.5, 0.12), (-1.3, 0.0, 1.36), paint))  # bed floor
     for y in (-1.22, 1.22):
         parts.append(box((4.7, 0.06, 0.45), (-1.3, y, 1.64), paint))
-    cover = np.array([[-3.65, 1.8], [1.0, 1.8], [1.0, 2.6], [0.8, 2.88], [-3.45, 2.88], [-3.65, 2.6]])
+    cover = np.array([[-3.65, 1.8], [1.0, 1.8], [1.0, 2.6], [0.8, 2.88], [-3.45, 2.88], [-3.65,
+                                                                                         2.6]])
     parts.append(extrude_profile(cover, -1.2, 1.2, M.CANVAS))
     for x in (2.95, -0.85, -2.35):
         for y in (-1.0, 1.0):
@@ -169,7 +178,8 @@ def truck_6x6(paint: int = M.OLIVE) -> Mesh:
 def car(paint: int = M.PAINT_SILVER) -> Mesh:
     """A family sedan, 4.5 x 1.8 x 1.45 m, in the given paint material."""
     parts: list[Mesh] = []
-    body = np.array([[-2.25, 0.30], [2.1, 0.30], [2.25, 0.55], [2.2, 0.75], [1.15, 0.92], [-2.2, 0.98],
+    body = np.array([[-2.25, 0.30], [2.1, 0.30], [2.25, 0.55], [2.2, 0.75], [1.15, 0.92], [-2.2,
+                                                                                           0.98],
                      [-2.28, 0.6]])
     parts.append(extrude_profile(_convex_hull_2d(body), -0.88, 0.88, paint))
     cabin = np.array([[1.15, 0.92], [0.35, 1.42], [-1.05, 1.42], [-1.9, 0.97]])

@@ -1,8 +1,8 @@
 """Target visibility by ray casting: which share of the target's surface a camera sees.
 
-visible_fraction = (target surface samples seen from the camera, inside the image) / (samples the camera
-would see with every other object removed). It is 1 for a target in the open and fully in the frame,
-0 behind a building, and in between when partly hidden or partly outside the image.
+visible_fraction = (target surface samples seen from the camera, inside the image) / (samples the
+camera would see with every other object removed). It is 1 for a target in the open and fully in the
+frame, 0 behind a building, and in between when partly hidden or partly outside the image.
 """
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ import open3d as o3d
 from atr.sim.config import SimConfig
 from atr.sim.mesh import Mesh
 
-_EPS_M = 0.03  # a surface sample counts as seen if the first hit lies within this of it (plus 1e-4 x range)
+# a surface sample counts as seen if the first hit lies within this of it (plus 1e-4 x range)
+_EPS_M = 0.03
 
 
 def raycasting_scene(meshes: list[Mesh]) -> tuple[o3d.t.geometry.RaycastingScene, list[int]]:
@@ -55,14 +56,16 @@ def first_hit_reaches(scene: o3d.t.geometry.RaycastingScene, origins: np.ndarray
 
 def target_visibility_rays(static: Mesh, target_world: Mesh, target_local: Mesh,
                            T_world_target: np.ndarray, cams: np.ndarray, cfg: SimConfig,
-                           n_samples: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                           n_samples: int | None = None) -> tuple[np.ndarray, np.ndarray,
+                                                                  np.ndarray]:
     """Visibility of the target samples from camera centres, ignoring the image frame.
 
     Args:
         cams: (F, 3) camera centres, metres.
 
     Returns:
-        sample points (S, 3); seen (F, S) bool: seen in the full scene; self_vis (F, S) bool: seen with
+        sample points (S, 3); seen (F, S) bool: seen in the full scene; self_vis (F, S) bool: seen
+        with
         the target alone. The visible fraction of frame f is seen[f].sum() / self_vis[f].sum().
     """
     pts = target_samples(target_local, T_world_target, n_samples or cfg.target_samples)

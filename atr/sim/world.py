@@ -1,14 +1,15 @@
-"""The simulated urban world of one scenario run: terrain, streets, buildings, walls, trees, vehicles, target.
+"""The simulated urban world of a scenario run: terrain, streets, buildings, trees, vehicles, target.
 
-A seed fixes the city (street grid, lots, buildings, trees, parked cars, confusers, the target's place and
-heading, the sun). A run then removes what its UAV orbit would fly into, and what could hide the target
-completely, except one tall "occluder" building next to the target whose width is tuned so the share of
-the run's frames without a visible target matches Table II (see docs/sim.md, "Scenes without target").
+A seed fixes the city (street grid, lots, buildings, trees, parked cars, confusers, the target's
+place and heading, the sun). A run then removes what its UAV orbit would fly into, and what could
+hide the target completely, except one tall "occluder" building next to the target whose width is
+tuned so the share of the run's frames without a visible target matches Table II (see docs/sim.md,
+"Scenes without target").
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +23,8 @@ from atr.sim.trajectory import Orbit, make_orbit
 from atr.sim.vehicles import car, ifv, t72, truck_6x6
 
 _TERRAIN_HALF_M = 400.0  # half size of the detailed terrain square, metres
-_TERRAIN_STEP_M = 2.5  # terrain grid spacing, metres
+# terrain grid spacing, metres (waves are >= 40 m long: < 1 cm interpolation error)
+_TERRAIN_STEP_M = 5.0
 _HORIZON_HALF_M = 6000.0  # half size of the flat outer ground that fills the view to the horizon
 _STREET_SPACING_M = (62.0, 85.0)  # distance between parallel streets, metres
 _STREET_WIDTH_M = (8.0, 12.0)  # carriageway width, metres
@@ -30,8 +32,9 @@ _SIDEWALK_M = 2.5  # sidewalk width, metres
 _CITY_HALF_M = 330.0  # buildings are placed within this half size, metres
 _TARGET_TOP_M = 2.2  # a building lower than this above the line of sight cannot hide the target
 _CLEAR_AROUND_TARGET_M = 9.0  # no building or tree this close to the target, metres
+# horizontal and vertical margin kept between the orbit and any object, metres
 _UAV_CLEARANCE_M = 8.0
-_TUNING_SAMPLES = 400  # target surface samples used when tuning the occluder  # horizontal and vertical margin kept between the orbit and any object, metres
+_TUNING_SAMPLES = 400  # target surface samples used when tuning the occluder
 
 
 @dataclass(frozen=True)
@@ -43,7 +46,7 @@ class World:
         static: every surface except the target (terrain, buildings, trees, vehicles), world frame.
         target: the target mesh in the world frame.
         target_name: name of the target ("t72" or the name given for a custom mesh).
-        T_world_target: (4, 4) world-from-target pose (target mesh frame: origin on the ground, x forward).
+        T_world_target: (4, 4) world-from-target pose (target frame: origin on the ground, x forward).
         target_local: the target mesh in its own frame.
         ground_rects: (K, 8) float64 ground map rectangles (cx, cy, half_u, half_v, cos, sin, material,
             centre-line marking flag), last match wins.
@@ -64,10 +67,11 @@ class World:
     occluder_width_m: float
 
 
-# ---------------------------------------------------------------------------------------------- terrain
+# terrain ------------------------------------------------------------------------------------------
 
 
-def terrain_height(x: np.ndarray, y: np.ndarray, waves: np.ndarray, center: np.ndarray) -> np.ndarray:
+def terrain_height(x: np.ndarray, y: np.ndarray, waves: np.ndarray,
+                   center: np.ndarray) -> np.ndarray:
     """Gentle terrain height, metres: sum of plane waves, flattened to 0 around the target.
 
     Args:
@@ -102,19 +106,21 @@ def _terrain_mesh(waves: np.ndarray, center: np.ndarray) -> Mesh:
     z0 = -0.3
     ov = np.array([[-H, -H, z0], [H, -H, z0], [H, H, z0], [-H, H, z0],
                    [-h, -h, z0], [h, -h, z0], [h, h, z0], [-h, h, z0]])
-    ot = np.array([[0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    ot = np.array([[0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5],
+                   [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
     outer = Mesh(ov, ot, np.full(len(ot), M.GRASS))
     return merge([inner, outer])
 
 
-# ---------------------------------------------------------------------------------------------- objects
+# objects ------------------------------------------------------------------------------------------
 
 
 def building(footprint: tuple[float, float], height_m: float, rng: np.random.Generator,
              wall_material: int = M.FACADE) -> Mesh:
-    """A building centred at the origin on the ground (1 m of basement below z = 0) with roof details."""
+    """A building centred at the origin (1 m of basement below z = 0), with roof details."""
     lx, ly = footprint
-    parts = [box((lx, ly, height_m + 1.0), (0, 0, 0.5 * (height_m - 1.0)), wall_material, bottom=False)]
+    parts = [box((lx, ly, height_m + 1.0), (0, 0, 0.5 * (height_m - 1.0)), wall_material,
+                 bottom=False)]
     if height_m < 11.0 and rng.random() < 0.5:
         ridge = min(lx, ly) * rng.uniform(0.25, 0.4)
         roof = gable_roof(lx + 0.6, ly + 0.6, ridge, (0, 0, height_m), M.ROOF_TILE)
@@ -122,7 +128,8 @@ def building(footprint: tuple[float, float], height_m: float, rng: np.random.Gen
             roof = gable_roof(ly + 0.6, lx + 0.6, ridge, (0, 0, height_m), M.ROOF_TILE).transformed(
                 pose(rot_z(np.pi / 2)))
         parts.append(roof)
-        parts.append(box((0.6, 0.6, ridge + 1.2), (0.25 * lx, 0.1 * ly, height_m + 0.5 * ridge), M.BRICK))
+        parts.append(box((0.6, 0.6, ridge + 1.2), (0.25 * lx, 0.1 * ly, height_m + 0.5 * ridge),
+                         M.BRICK))
         return merge(parts)
     parts.append(box((lx - 0.4, ly - 0.4, 0.05), (0, 0, height_m + 0.02), M.ROOF))
     # parapet
@@ -145,7 +152,8 @@ def building(footprint: tuple[float, float], height_m: float, rng: np.random.Gen
         cx, cy = rng.uniform(-0.3, 0.3) * lx, rng.uniform(-0.3, 0.3) * ly
         parts.append(cylinder(r, 2.0, 14, M.METAL, center=(cx, cy, height_m + 2.2)))
         for dx, dy in ((-0.6, -0.6), (0.6, -0.6), (0.6, 0.6), (-0.6, 0.6)):
-            parts.append(box((0.12, 0.12, 1.2), (cx + dx * r, cy + dy * r, height_m + 0.6), M.METAL))
+            parts.append(box((0.12, 0.12, 1.2), (cx + dx * r, cy + dy * r, height_m + 0.6),
+                             M.METAL))
     return merge(parts)
 
 
@@ -168,7 +176,7 @@ def tree(rng: np.random.Generator, height_m: float) -> Mesh:
         b = cylinder(0.5 * trunk_r, length, 6, M.BARK)
         R = _rot_from_z(d)
         parts.append(b.transformed(pose(R, c)))
-    n_clumps = int(80 + 45.0 * crown_r**2)
+    n_clumps = int(60 + 36.0 * crown_r**2)
     u = rng.normal(size=(n_clumps, 3))
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     rad = crown_r * rng.random(n_clumps) ** 0.4
@@ -177,8 +185,9 @@ def tree(rng: np.random.Generator, height_m: float) -> Mesh:
     scale = sizes[:, None] * np.column_stack([np.ones(n_clumps), rng.uniform(0.6, 1.0, n_clumps),
                                               rng.uniform(0.4, 0.8, n_clumps)])
     R = _random_rotations(rng, n_clumps)
-    # leaf clumps are small tetrahedra: 4 triangles each, sharp-edged like leaf clusters seen from afar
-    tet_v = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]]) / np.sqrt(3)
+    # leaf clumps are small tetrahedra: 4 triangles each, sharp-edged like leaf clusters from afar
+    tet_v = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0],
+                      [-1.0, -1.0, 1.0]]) / np.sqrt(3)
     tet_t = np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]])
     v = np.einsum("nij,kj->nki", R * scale[:, None, :], tet_v) + centers[:, None, :]
     t = tet_t[None] + 4 * np.arange(n_clumps)[:, None, None]
@@ -205,7 +214,7 @@ def _random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
     ], axis=1)
 
 
-# ---------------------------------------------------------------------------------------------- layout
+# layout -------------------------------------------------------------------------------------------
 
 
 @dataclass
@@ -232,7 +241,8 @@ class _Keepout:
     def flyable(self, x: float, y: float, r: float, h: float) -> bool:
         """False when the UAV would fly into the object."""
         d = np.hypot(x - self.c[0], y - self.c[1])
-        return not (abs(d - self.radius) < r + _UAV_CLEARANCE_M and h > self.cam_h - _UAV_CLEARANCE_M)
+        near_path = abs(d - self.radius) < r + _UAV_CLEARANCE_M
+        return not (near_path and h > self.cam_h - _UAV_CLEARANCE_M)
 
     def cannot_hide(self, x: float, y: float, r: float, h: float) -> bool:
         """False when the object could hide the whole target from some orbit position."""
@@ -265,7 +275,7 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
         raise InputError("target mesh has no triangles")
     name = target_name or ("t72" if target_mesh is None else "target")
 
-    # --- city plan (seed only) ----------------------------------------------------------------------
+    # --- city plan (seed only) --------------------------------------------------------------------
     grid_ang = rng.uniform(0, np.pi / 2)
     spacing = rng.uniform(*_STREET_SPACING_M, 2)
     widths = rng.uniform(*_STREET_WIDTH_M, 2)
@@ -285,7 +295,8 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
                              rng.uniform(0, np.pi, 6), rng.uniform(0, 2 * np.pi, 6)])
     sun_el = np.deg2rad(rng.uniform(*cfg.sun_elevation_deg))
     sun_az = rng.uniform(0, 2 * np.pi)
-    sun_dir = np.array([np.cos(sun_el) * np.cos(sun_az), np.cos(sun_el) * np.sin(sun_az), np.sin(sun_el)])
+    sun_dir = np.array([np.cos(sun_el) * np.cos(sun_az), np.cos(sun_el) * np.sin(sun_az),
+                        np.sin(sun_el)])
 
     def ground(x, y):
         return terrain_height(x, y, waves, target_xy)
@@ -293,12 +304,12 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
     T_world_target = pose(rot_z(heading), (target_xy[0], target_xy[1], 0.0))
     target_world = tmesh.transformed(T_world_target)
 
-    # --- the run's orbit (seed, scenario, run) -------------------------------------------------------
+    # --- the run's orbit (seed, scenario, run) ----------------------------------------------------
     orbit = make_orbit(sc, np.array([target_xy[0], target_xy[1], 0.0]),
                        np.random.default_rng([seed, sc.scenario, sc.run, 0x0B17]), cfg)
     keep = _Keepout(target_xy, orbit, 1.1)
 
-    # --- ground map: streets with sidewalks, a square around the target -----------------------------
+    # --- ground map: streets with sidewalks, a square around the target ---------------------------
     rects = []
     n_lines = int(_TERRAIN_HALF_M * 2 / spacing.min()) + 2
     for axis in (0, 1):
@@ -342,7 +353,7 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
         items.append(_Item(place(mesh_local, x, y, z, yaw), x, y, r, h, kind))
         occ_xyr = np.vstack([occ_xyr, [[x, y, r]]])
 
-    # --- buildings in the blocks between streets ---------------------------------------------------------
+    # --- buildings in the blocks between streets --------------------------------------------------
     n_blocks = [int(_CITY_HALF_M / s) + 2 for s in spacing]
     for bu in range(-n_blocks[0], n_blocks[0] + 1):
         for bv in range(-n_blocks[1], n_blocks[1] + 1):
@@ -366,14 +377,17 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
                     x, y = to_world @ np.array([cu, cv])
                     if max(abs(x), abs(y)) > _CITY_HALF_M:
                         continue
-                    h = float(rng.choice([rng.uniform(5, 10), rng.uniform(10, 22), rng.uniform(18, 32)],
+                    h = float(rng.choice([rng.uniform(5, 10), rng.uniform(10, 22), rng.uniform(18,
+                                                                                               32)],
                                          p=[0.4, 0.45, 0.15]))
                     wall = M.BRICK if rng.random() < 0.3 else M.FACADE
                     mesh = building((fu, fv), h, rng, wall)
                     r = 0.5 * np.hypot(fu, fv)
-                    if keep.flyable(x, y, r, h + 3.0) and keep.cannot_hide(x, y, r, h + 3.0) and free(x, y, r):
+                    if keep.flyable(x, y, r, h + 3.0) and keep.cannot_hide(x, y, r,
+                                                                           h + 3.0) and free(x, y,
+                                                                                             r):
                         add(mesh, x, y, grid_ang, r, h, "building", sink=0.0)
-    # --- trees along sidewalks and in open places ----------------------------------------------------
+    # --- trees along sidewalks and in open places -------------------------------------------------
     n_trees = 0
     attempts = 0
     while n_trees < 320 and attempts < 5000:
@@ -393,7 +407,7 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
         if keep.flyable(x, y, r, h) and free(x, y, r * 0.6):
             add(tree(rng, h), x, y, 0.0, r * 0.6, h, "tree", sink=0.3)
             n_trees += 1
-    # --- low walls -------------------------------------------------------------------------------------
+    # --- low walls --------------------------------------------------------------------------------
     for _ in range(40):
         x, y = rng.uniform(-_CITY_HALF_M * 0.6, _CITY_HALF_M * 0.6, 2)
         du, dv = street_dist(x, y)
@@ -405,7 +419,7 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
         wall = box((length, 0.3, h + 0.5), (0, 0, 0.5 * h - 0.25), mat, bottom=False)
         if keep.flyable(x, y, 0.5 * length, h) and free(x, y, 0.5 * length):
             add(wall, x, y, yaw, 0.5 * length, h, "wall")
-    # --- parked cars along the kerbs -------------------------------------------------------------------
+    # --- parked cars along the kerbs --------------------------------------------------------------
     for _ in range(400):
         x, y = rng.uniform(-_CITY_HALF_M, _CITY_HALF_M, 2)
         du, dv = street_dist(x, y)
@@ -417,7 +431,7 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
             continue
         if free(x, y, 2.3) and keep.flyable(x, y, 2.3, 1.5):
             add(car(M.CAR_PAINTS[int(rng.integers(len(M.CAR_PAINTS)))]), x, y, yaw, 2.3, 1.5, "car")
-    # --- confusers: an IFV, a 6x6 truck and any user meshes, on open ground near the target ---------
+    # --- confusers: an IFV, a 6x6 truck and any user meshes, on open ground near the target -------
     confusers: list[Mesh] = [ifv(M.OLIVE if rng.random() < 0.7 else M.SAND),
                              truck_6x6(M.OLIVE if rng.random() < 0.7 else M.SAND)]
     confusers += list(clutter_meshes)
@@ -432,13 +446,16 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
                 add(mesh, x, y, rng.uniform(0, 2 * np.pi), r, float(hi[2]), "confuser")
                 break
 
-    static_parts = [_terrain_mesh(waves, target_xy)] + [it.mesh for it in items]
+    terrain = _terrain_mesh(waves, target_xy)
     occluder_width = 0.0
+    occ = None
     if sc.absent_ratio > 0:
-        occ, occluder_width = _tuned_occluder(sc, cfg, orbit, target_world, tmesh, T_world_target,
-                                              merge(static_parts), rng, items)
-        if occ is not None:
-            static_parts.append(occ)
+        occ, occluder_width, inside = _tuned_occluder(
+            sc, cfg, orbit, target_world, tmesh, T_world_target,
+            merge([terrain] + [it.mesh for it in items]), rng)
+        # nothing may stand inside the occluder building
+        items = [it for it in items if not inside(it.x, it.y, it.radius)]
+    static_parts = [terrain] + [it.mesh for it in items] + ([occ] if occ is not None else [])
     return World(seed=seed, static=merge(static_parts), target=target_world, target_name=name,
                  T_world_target=T_world_target, target_local=tmesh, ground_rects=ground_rects,
                  sun_dir=sun_dir, orbit=orbit, occluder_width_m=occluder_width)
@@ -449,12 +466,18 @@ def frame_times_s(sc: Scenario, cfg: SimConfig) -> np.ndarray:
     return np.arange(sc.n_frames) * cfg.frame_interval_s(sc.range_m)
 
 
-def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Mesh, target_local: Mesh,
-                    T_world_target: np.ndarray, static: Mesh, rng: np.random.Generator,
-                    items: list[_Item]) -> tuple[Mesh | None, float]:
-    """A tall building beside the target, widened until the run's share of frames without a visible
-    target reaches the scenario's absent ratio (bisection on the width; ray-box tests, no re-meshing)."""
-    from atr.sim.visibility import target_visibility_rays  # late import: visibility needs a built scene
+def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Mesh,
+                    target_local: Mesh, T_world_target: np.ndarray, static: Mesh,
+                    rng: np.random.Generator) -> tuple[Mesh | None, float, Callable]:
+    """A tall building beside the target, widened until the run's share of scenes without a visible
+    target reaches the scenario's absent ratio (bisection on the width; ray-box tests, no re-meshing).
+
+    Returns:
+        the building (None when clutter alone already hides the target often enough), its width in
+        metres, and a test inside(x, y, r) telling whether a disc overlaps its footprint.
+    """
+    # late import: visibility needs a built scene
+    from atr.sim.visibility import target_visibility_rays
 
     times = frame_times_s(sc, cfg)
     cams = np.array([(orbit.T_world_imu(t) @ cfg.T_imu_cam_matrix)[:3, 3] for t in times])
@@ -483,7 +506,7 @@ def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Me
         return 1.0 - scene_present.mean()
 
     if hidden_share(0.0) >= sc.absent_ratio:
-        return None, 0.0
+        return None, 0.0, lambda x, y, r: False
     lo, hi = 0.0, 120.0
     if hidden_share(hi) < sc.absent_ratio:
         lo = hi
@@ -495,11 +518,16 @@ def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Me
             else:
                 hi = mid
     width = hi if lo < hi else lo
-    # drop anything standing where the occluder goes
     rng_b = np.random.default_rng(int(rng.integers(1 << 31)))
     occ = building((depth, width), height, rng_b, M.FACADE)
     occ = place(occ, center_xy[0], center_xy[1], 0.0, az)
-    return occ, float(width)
+
+    def inside(x: float, y: float, r: float) -> bool:
+        du = (x - center_xy[0]) * u[0] + (y - center_xy[1]) * u[1]
+        dv = -(x - center_xy[0]) * u[1] + (y - center_xy[1]) * u[0]
+        return abs(du) < 0.5 * depth + r and abs(dv) < 0.5 * width + r
+
+    return occ, float(width), inside
 
 
 def _rays_hit_box(origins: np.ndarray, ends: np.ndarray, center_xy: np.ndarray, yaw: float,

@@ -8,7 +8,8 @@ from atr.sim.mesh import box, merge
 
 
 def test_t72_proportions():
-    """Published T-72 figures: hull 6.86 m, 3.59 m over the skirts, 2.19 m to the turret roof, gun ~2.5 m
+    """Published T-72 figures: hull 6.86 m, 3.59 m over the skirts, 2.19 m to the turret roof, gun
+    ~2.5 m
     past the hull front (hull front at 3.43 m)."""
     m = t72()
     lo, hi = m.bounds()
@@ -43,7 +44,8 @@ def test_mesh_round_trip(tmp_path, ext):
 
 
 def test_loose_parts_load(tmp_path):
-    parts = merge([box((1, 1, 1), (0, 0, 0.5)), box((1, 1, 1), (3, 0, 0.5)), box((0.2, 0.2, 0.2), (0, 0, 0.5))])
+    parts = merge([box((1, 1, 1), (0, 0, 0.5)), box((1, 1, 1), (3, 0, 0.5)), box((0.2, 0.2, 0.2),
+                                                                                 (0, 0, 0.5))])
     p = tmp_path / "parts.ply"
     save_mesh(parts, p)
     assert load_mesh(p).n_triangles == parts.n_triangles

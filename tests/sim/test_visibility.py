@@ -36,7 +36,8 @@ def test_visible_fraction_partial_when_half_outside_frame(small_cfg):
 
 
 def test_tuned_occluder_gives_table_ii_absent_share(world_s1r3, small_cfg):
-    """Scenario 1 (3 % of scenes without target): the tuned occluder hides the target in a few frames
+    """Scenario 1 (3 % of scenes without target): the tuned occluder hides the target in a few
+    frames
     of the run and leaves it visible in most."""
     import numpy as np
 
