@@ -72,10 +72,12 @@ def figures(repeat: int) -> None:
         n = sum(1 for _ in it)
         t_sim = (time.perf_counter() - t) / max(n, 1)
         per_run[sc.scenario] = (t_world, t_sim, t_lidar)
-        print(f"scenario {sc.scenario} run {sc.run} ({sc.range_m:.0f} m, {sc.obliquity_deg:.0f} deg): "
+        print(f"scenario {sc.scenario} run {sc.run} ({sc.range_m:.0f} m, "
+              f"{sc.obliquity_deg:.0f} deg): "
               f"world build {t_world:.2f} s ({world.static.n_triangles} triangles); "
               f"render {t_frame * 1e3:.0f} ms/frame = {1 / t_frame:.2f} frames/s "
-              f"({t_frame / t_ref:.1f}x reference, {cpu_frame:.2f} CPU s); visible_fraction {t_vis * 1e3:.0f} ms; "
+              f"({t_frame / t_ref:.1f}x reference, {cpu_frame:.2f} CPU s); "
+              f"visible_fraction {t_vis * 1e3:.0f} ms; "
               f"simulate_flight {t_sim * 1e3:.0f} ms/frame; "
               f"LIDAR scan {t_lidar * 1e3:.0f} ms = {lidar_rays / t_lidar / 1e6:.2f} M rays/s")
     total_cam = total_lidar = 0.0
@@ -122,8 +124,8 @@ def pictures(out: Path, seed: int) -> None:
         if (sc.scenario, sc.run) in ((1, 3), (3, 1)):
             cv2.imwrite(str(out / name), _bgr(f.image))
         small = cv2.resize(f.image, (480, 360), interpolation=cv2.INTER_AREA)
-        tiles.append(_label(small,
-                            f"scenario {sc.scenario}: {sc.range_m:.0f} m, {sc.obliquity_deg:.0f} deg"))
+        text = f"scenario {sc.scenario}: {sc.range_m:.0f} m, {sc.obliquity_deg:.0f} deg"
+        tiles.append(_label(small, text))
         print(f"{name}: visible_fraction {f.targets[0].visible_fraction:.2f}")
     while len(tiles) % 3:
         tiles.append(np.zeros_like(tiles[0]))
@@ -140,8 +142,8 @@ def pictures(out: Path, seed: int) -> None:
     ok = (st.ravel() == 1) & (st2.ravel() == 1) & (np.linalg.norm(pb - p0, axis=2).ravel() < 1.0)
     vis = _bgr(f1.image)
     for a, b in zip(p0[ok].reshape(-1, 2), p1[ok].reshape(-1, 2), strict=True):
-        cv2.line(vis, tuple(np.round(a).astype(int)), tuple(np.round(b).astype(int)), (0, 255,
-                                                                                       255), 1)
+        a_px, b_px = tuple(np.round(a).astype(int)), tuple(np.round(b).astype(int))
+        cv2.line(vis, a_px, b_px, (0, 255, 255), 1)
     vis = _label(vis, f"GFTT {len(p0)} corners, KLT tracked {int(ok.sum())} (fb < 1 px)")
     cv2.imwrite(str(out / "klt_tracks_s2_r3.png"), vis)
     print(f"KLT: {len(p0)} corners, {int(ok.sum())} tracked")
@@ -172,13 +174,13 @@ def pictures(out: Path, seed: int) -> None:
     ren = Renderer(world, wide)
     tgt = world.T_world_target[:3, 3]
     lin, _ = ren.render(_look_at(tgt + np.array([-260.0, -200.0, 330.0]), tgt))
-    cv2.imwrite(str(out / "world_overview.png"), _bgr(_label(to_srgb8(lin),
-                                                             "world overview (scenario 3 world)")))
+    overview = _label(to_srgb8(lin), "world overview (scenario 3 world)")
+    cv2.imwrite(str(out / "world_overview.png"), _bgr(overview))
     # the T-72 model, close up
     close = SimConfig(width_px=960, height_px=720, focal_px=1100.0)
     ren = Renderer(world, close)
-    for name, off in (("t72_three_quarter.png", [9.0, 8.0, 5.0]), ("t72_rear.png", [-11.0, 5.0,
-                                                                                    4.5])):
+    views = (("t72_three_quarter.png", [9.0, 8.0, 5.0]), ("t72_rear.png", [-11.0, 5.0, 4.5]))
+    for name, off in views:
         R = world.T_world_target[:3, :3]
         lin, _ = ren.render(_look_at(tgt + R @ np.array(off), tgt + np.array([0, 0, 1.0])))
         cv2.imwrite(str(out / name), _bgr(_label(to_srgb8(lin), "T-72 model")))

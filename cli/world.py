@@ -55,11 +55,13 @@ def run(args: argparse.Namespace) -> int:
         save_mesh(world.target, folder / f"target.{args.format}")
         o = world.orbit
         meta = {
-            "scenario": sc.scenario, "run": sc.run, "seed": args.seed, "target_name": world.target_name,
+            "scenario": sc.scenario, "run": sc.run, "seed": args.seed,
+            "target_name": world.target_name,
             "T_world_target": world.T_world_target.tolist(), "sun_dir": world.sun_dir.tolist(),
             "orbit": {"center_m": o.center.tolist(), "radius_m": o.radius_m, "height_m": o.height_m,
                       "rate_radps": o.rate_radps},
-            "occluder_width_m": world.occluder_width_m, "static_triangles": world.static.n_triangles,
+            "occluder_width_m": world.occluder_width_m,
+            "static_triangles": world.static.n_triangles,
         }
         (folder / "world.json").write_text(json.dumps(meta, indent=2))
         print(f"wrote {folder}")

@@ -50,8 +50,8 @@ def load_mesh(path: str | Path, material: int = M.DEFAULT) -> Mesh:
     if t.shape[0] == 0:
         raise InputError(f"mesh file {p} holds only degenerate triangles")
     used, inv = np.unique(t.ravel(), return_inverse=True)
-    return Mesh(v[used], inv.reshape(-1, 3).astype(np.int32), np.full(t.shape[0], material,
-                                                                      np.int16))
+    material_ids = np.full(t.shape[0], material, np.int16)
+    return Mesh(v[used], inv.reshape(-1, 3).astype(np.int32), material_ids)
 
 
 def save_mesh(mesh: Mesh, path: str | Path) -> None:

@@ -95,7 +95,7 @@ def value_noise2(x: float, y: float, seed: int) -> float:
 @numba.njit(cache=True)
 def fbm2(u: float, v: float, wavelength_m: float, octaves: int, footprint_m: float, seed: int,
          gain: float = 0.55) -> float:
-    """2D fractal value noise in [0, 1], mean 0.5, on surface coordinates (u, v); band-limited like fbm."""
+    """2D fractal value noise in [0, 1], mean 0.5, on surface coordinates; band-limited like fbm."""
     total = 0.0
     norm = 0.0
     amp = 1.0
@@ -117,7 +117,7 @@ def fbm2(u: float, v: float, wavelength_m: float, octaves: int, footprint_m: flo
 @numba.njit(cache=True)
 def fbm(x: float, y: float, z: float, wavelength_m: float, octaves: int, footprint_m: float,
         seed: int) -> float:
-    """Fractal value noise in [0, 1], mean 0.5; octaves finer than ~2 footprints fade to the mean."""
+    """Fractal value noise in [0, 1], mean 0.5; octaves finer than ~2 footprints fade out."""
     total = 0.0
     norm = 0.0
     amp = 1.0
@@ -227,8 +227,8 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
         r = _mix(0.42, 0.55, tint)
         g = _mix(0.40, 0.47, tint)
         b = _mix(0.36, 0.36, tint)
-        grime = (0.65 + 0.7 * fbm2(u, v, 3.0, 7, fp, s, 0.7)) * (0.8 + 0.4 * fbm2(u, v, 0.3, 3, fp,
-                                                                                  s + 4))
+        grime = (0.65 + 0.7 * fbm2(u, v, 3.0, 7, fp, s, 0.7)) * (
+            0.8 + 0.4 * fbm2(u, v, 0.3, 3, fp, s + 4))
         r *= grime
         g *= grime
         b *= grime
@@ -250,8 +250,8 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
                 g *= 0.62
                 b *= 0.64
     elif mat == M.ROOF:
-        k = (0.45 + 1.1 * fbm2(u, v, 0.5, 6, fp, s, 0.8)) * (0.7 + 0.6 * fbm2(u, v, 5.0, 2, fp,
-                                                                              s + 1))
+        k = (0.45 + 1.1 * fbm2(u, v, 0.5, 6, fp, s, 0.8)) * (
+            0.7 + 0.6 * fbm2(u, v, 5.0, 2, fp, s + 1))
         r, g, b = 0.12 * k, 0.115 * k, 0.11 * k
     elif mat == M.ROOF_TILE:
         ridge = _lines(z, 0.22, 0.05, fp)
@@ -317,8 +317,8 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
         g *= k
         b *= k
     elif mat == M.DIRT:
-        k = (0.4 + 1.2 * fbm2(u, v, 0.4, 6, fp, s, 0.8)) * (0.7 + 0.6 * fbm2(u, v, 4.0, 2, fp,
-                                                                             s + 1))
+        k = (0.4 + 1.2 * fbm2(u, v, 0.4, 6, fp, s, 0.8)) * (
+            0.7 + 0.6 * fbm2(u, v, 4.0, 2, fp, s + 1))
         r, g, b = 0.17 * k, 0.12 * k, 0.075 * k
     # micro detail: grain a few centimetres across, strong on rough materials; it fades out with
     # range
@@ -374,7 +374,8 @@ def make_rays(dirs_cam: np.ndarray, R: np.ndarray, origin: np.ndarray) -> np.nda
 
 @numba.njit(cache=True, parallel=True)
 def surface_points(rays: np.ndarray, t_hit: np.ndarray, prim: np.ndarray, geom: np.ndarray,
-                   nrm_in: np.ndarray, mat_static: np.ndarray, mat_target: np.ndarray, target_gid: int,
+                   nrm_in: np.ndarray, mat_static: np.ndarray, mat_target: np.ndarray,
+                   target_gid: int,
                    focal_px: float, grazing_cos_min: float, sun: np.ndarray, shadow_bias_m: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                               np.ndarray,
@@ -432,7 +433,7 @@ def compose(mat: np.ndarray, pos: np.ndarray, nrm: np.ndarray, fp: np.ndarray, d
             direct: np.ndarray, rays: np.ndarray, rects: np.ndarray, seed: int, sun_rgb: np.ndarray,
             sky_rgb: np.ndarray, haze_rgb: np.ndarray, zenith_rgb: np.ndarray, haze_k: float,
             exposure: float) -> np.ndarray:
-    """(N, 3) float32 linear RGB after exposure: albedo x (sun + sky), haze with range; sky for misses."""
+    """(N, 3) float32 linear RGB after exposure: albedo x (sun + sky), haze; sky where rays miss."""
     n = mat.shape[0]
     out = np.empty((n, 3), np.float32)
     for i in numba.prange(n):

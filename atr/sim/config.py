@@ -96,7 +96,8 @@ class SimConfig:
             if getattr(self, name) <= 0:
                 raise ConfigError(f"{name} {getattr(self, name)} must be > 0")
         for name in ("focal_px", "speed_mps", "baseline_to_range", "imu_rate_hz", "gravity_mps2",
-                     "exposure", "shot_noise_full_well", "lidar_max_range_m", "lidar_shot_quantum_m"):
+                     "exposure", "shot_noise_full_well", "lidar_max_range_m",
+                     "lidar_shot_quantum_m"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} {getattr(self, name)} must be > 0")
         if self.haze_visibility_m is not None and self.haze_visibility_m <= 0:
@@ -106,7 +107,8 @@ class SimConfig:
             raise ConfigError("T_imu_cam must be a 4x4 rigid transform")
         if not 0.0 <= self.present_min_visible_fraction <= 1.0:
             raise ConfigError(
-                f"present_min_visible_fraction {self.present_min_visible_fraction} must be in [0, 1]")
+                f"present_min_visible_fraction {self.present_min_visible_fraction} "
+                "must be in [0, 1]")
 
     @property
     def K(self) -> np.ndarray:

@@ -140,8 +140,8 @@ def simulate_flight(scenario: Scenario, *, seed: int = 0, frames: int | None = N
     # the whole run's IMU noise is drawn up front so that `frames` does not change any value
     n_imu = (scenario.n_frames - 1) * per_frame + 1
     t_imu = np.arange(max(n_imu, (n_frames - 1) * per_frame + 1)) / cfg.imu_rate_hz
-    imu_rng = np.random.default_rng([seed, scenario.scenario, scenario.run,
-                                     1]) if imu_noise else None
+    stream = [seed, scenario.scenario, scenario.run]  # generator seeds: stream + [tag, ...]
+    imu_rng = np.random.default_rng(stream + [1]) if imu_noise else None
     imu = imu_samples(orbit, t_imu, cfg, imu_rng)
     T_imu_cam = cfg.T_imu_cam_matrix
     K = cfg.K
@@ -158,13 +158,12 @@ def simulate_flight(scenario: Scenario, *, seed: int = 0, frames: int | None = N
         image = to_srgb8(lin)
         if spec.active:
             image = noisy_image(lin, image, spec, cfg.shot_noise_full_well,
-                                np.random.default_rng([seed, scenario.scenario, scenario.run, 2,
-                                                       seq]))
+                                np.random.default_rng(stream + [2, seq]))
         cloud = None
         if lidar:
-            lrng = np.random.default_rng([seed, scenario.scenario, scenario.run, 3, seq])
-            cloud = renderer.lidar_scan(T_world_cam, scenario.lidar_resolution_m, scenario.range_m,
-                                        lrng)
+            lrng = np.random.default_rng(stream + [3, seq])
+            cloud = renderer.lidar_scan(T_world_cam, scenario.lidar_resolution_m,
+                                        scenario.range_m, lrng)
             if spec.active:
                 cloud = noisy_cloud(cloud, T_world_cam[:3, 3], spec, cfg.lidar_shot_quantum_m, lrng)
         truth = [TargetTruth(world.target_name, world.T_world_target.copy(),

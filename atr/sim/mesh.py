@@ -37,7 +37,8 @@ class Mesh:
         if m.shape[0] != t.shape[0]:
             raise InputError(f"mesh has {t.shape[0]} triangles but {m.shape[0]} material entries")
         if t.size and (t.min() < 0 or t.max() >= v.shape[0]):
-            raise InputError(f"triangle indices must lie in [0, {v.shape[0]}), got [{t.min()}, {t.max()}]")
+            raise InputError(
+                f"triangle indices must lie in [0, {v.shape[0]}), got [{t.min()}, {t.max()}]")
         if not np.all(np.isfinite(v)):
             raise InputError("mesh vertices contain NaN or infinite values")
         object.__setattr__(self, "vertices", v)
@@ -136,11 +137,11 @@ def place(mesh: Mesh, x: float, y: float, z: float = 0.0, yaw_rad: float = 0.0) 
 
 def box(size: Sequence[float], center: Sequence[float] = (0, 0, 0), material: int = 0,
         bottom: bool = True) -> Mesh:
-    """Axis-aligned box of size (sx, sy, sz) centred at center; bottom=False leaves the floor open."""
+    """Axis-aligned box of size (sx, sy, sz) at center; bottom=False leaves the floor open."""
     sx, sy, sz = (0.5 * float(s) for s in size)
     v = np.array([[-sx, -sy, -sz], [sx, -sy, -sz], [sx, sy, -sz], [-sx, sy, -sz],
-                  [-sx, -sy, sz], [sx, -sy, sz], [sx, sy, sz], [-sx, sy, sz]]) + np.asarray(center,
-                                                                                            float)
+                  [-sx, -sy, sz], [sx, -sy, sz], [sx, sy, sz], [-sx, sy, sz]])
+    v = v + np.asarray(center, float)
     t = [[4, 5, 6], [4, 6, 7],            # top
          [0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]]
     if bottom:
@@ -177,8 +178,8 @@ def cylinder(radius: float, length: float, segments: int = 16, material: int = 0
     """Cylinder (or frustum when radius_end is given) along axis x, y or z, centred at center."""
     r1 = float(radius) if radius_end is None else float(radius_end)
     a = np.linspace(0, 2 * np.pi, segments, endpoint=False)
-    ring0 = np.column_stack([radius * np.cos(a), radius * np.sin(a), np.full(segments,
-                                                                             -0.5 * length)])
+    ring0 = np.column_stack([radius * np.cos(a), radius * np.sin(a),
+                             np.full(segments, -0.5 * length)])
     ring1 = np.column_stack([r1 * np.cos(a), r1 * np.sin(a), np.full(segments, 0.5 * length)])
     v = np.vstack([ring0, ring1, [[0, 0, -0.5 * length], [0, 0, 0.5 * length]]])
     tris = []
@@ -198,7 +199,8 @@ def cylinder(radius: float, length: float, segments: int = 16, material: int = 0
 
 
 def ellipsoid(radii: Sequence[float], center: Sequence[float] = (0, 0, 0), material: int = 0,
-              rings: int = 8, segments: int = 12, z_min_frac: float = -1.0, power: float = 1.0) -> Mesh:
+              rings: int = 8, segments: int = 12, z_min_frac: float = -1.0,
+              power: float = 1.0) -> Mesh:
     """Ellipsoid (or a cap of it when z_min_frac > -1); power < 1 flattens the top into a dome."""
     rx, ry, rz = (float(r) for r in radii)
     phis = np.linspace(np.pi / 2, np.arcsin(np.clip(z_min_frac, -1, 1)), rings + 1)
@@ -231,7 +233,7 @@ def octahedron(radius: float, center: Sequence[float] = (0, 0, 0), material: int
 
 def gable_roof(length: float, width: float, height: float, center: Sequence[float],
                material: int = 0) -> Mesh:
-    """Gable roof prism along x: base rectangle length x width at center z, ridge height above it."""
+    """Gable roof prism along x: base length x width at center z, ridge height above it."""
     lx, wy = 0.5 * length, 0.5 * width
     prof = np.array([[-wy, 0.0], [wy, 0.0], [0.0, height]])
     m = extrude_profile(prof, -lx, lx, material)  # profile in (y, z) extruded along x

@@ -13,8 +13,9 @@ LIDAR):
   image-noise function taking the number 0.1 does, and keeps the two arms on the same numeric
   setting.)
 
-Shot noise: images draw photo-electrons from a Poisson law (full_well electrons at full scale); LIDAR
-ranges become q x Poisson(range / q) (paper eq. 8 in spirit: Poisson noise on the LIDAR depth).
+Shot noise: images draw photo-electrons from a Poisson law (full_well electrons at full scale);
+LIDAR ranges become q x Poisson(range / q) (paper eq. 8 in spirit: Poisson noise on the LIDAR
+depth).
 """
 
 from __future__ import annotations
@@ -66,7 +67,8 @@ def parse_noise(spec: str | None) -> NoiseSpec:
             continue
         m = _GAUSS.match(token)
         if m is None:
-            raise ConfigError(f"noise spec token {token!r} must be 'shot', 'gaussian:<sigma cm>' or 'none'")
+            raise ConfigError(
+                f"noise spec token {token!r} must be 'shot', 'gaussian:<sigma cm>' or 'none'")
         sigma = float(m.group(1)) / 100.0
     return NoiseSpec(shot, sigma)
 

@@ -74,7 +74,8 @@ class Renderer:
             float(self.K[0, 0]), _GRAZING_COS_MIN, self.world.sun_dir, _SHADOW_BIAS_M)
         # sun and shadows: a second ray cast towards the sun, only from surfaces facing it
         lit = np.nonzero(ndl > 0)[0]
-        occluded = self.scene.test_occlusions(o3d.core.Tensor.from_numpy(np.ascontiguousarray(sh[lit]))).numpy()
+        sh_lit = np.ascontiguousarray(sh[lit])
+        occluded = self.scene.test_occlusions(o3d.core.Tensor.from_numpy(sh_lit)).numpy()
         direct = np.zeros(t.size)
         direct[lit] = np.where(occluded, 0.0, ndl[lit])
         haze_k = 0.0 if cfg.haze_visibility_m is None else 3.912 / cfg.haze_visibility_m
@@ -106,9 +107,8 @@ class Renderer:
         pc = (pts - o) @ T[:3, :3]
         in_front = pc[:, 2] > 0.1
         uv = pc[:, :2] / np.where(in_front, pc[:, 2], 1.0)[:, None] * self.K[0, 0] + self.K[:2, 2]
-        inside = in_front & (uv[:, 0] >= 0) & (uv[:, 0] <= self.cfg.width_px - 1) & (uv[:,
-                                                                                        1] >= 0) & (
-            uv[:, 1] <= self.cfg.height_px - 1)
+        inside = (in_front & (uv[:, 0] >= 0) & (uv[:, 0] <= self.cfg.width_px - 1)
+                  & (uv[:, 1] >= 0) & (uv[:, 1] <= self.cfg.height_px - 1))
         return float((seen & inside).sum() / n_self)
 
     # LIDAR ----------------------------------------------------------------------------------------
@@ -158,10 +158,11 @@ class Renderer:
         rays = np.empty((n * n, 6), np.float32)
         rays[:, :3] = o
         rays[:, 3:] = centre
-        t0 = self.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))["t_hit"].numpy().astype(np.float64)
+        t0 = self.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))["t_hit"].numpy()
+        t0 = t0.astype(np.float64)
         t0 = np.where(np.isfinite(t0), t0, range_m)
-        half_angle = 0.5 * (cfg.lidar_aperture_m / np.maximum(t0,
-                                                              1.0) + cfg.lidar_divergence_mrad * 1e-3)
+        spot_rad = cfg.lidar_aperture_m / np.maximum(t0, 1.0) + cfg.lidar_divergence_mrad * 1e-3
+        half_angle = 0.5 * spot_rad
         sub = (centre[:, None, :] + half_angle[:, None, None] * (
             offs[None, :, 0:1] * e1[:, None, :] + offs[None, :, 1:2] * e2[:, None, :]))
         sub /= np.linalg.norm(sub, axis=2, keepdims=True)
@@ -184,7 +185,7 @@ def to_srgb8(img_linear: np.ndarray) -> np.ndarray:
 
 
 def project(points_world: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray) -> np.ndarray:
-    """Pinhole projection of (N, 3) world points to (N, 2) pixel coordinates (NaN behind the camera)."""
+    """Pinhole projection of (N, 3) world points to (N, 2) pixels (NaN behind the camera)."""
     T = np.asarray(T_world_cam, dtype=np.float64)
     pc = (np.asarray(points_world, dtype=np.float64) - T[:3, 3]) @ T[:3, :3]
     z = np.where(pc[:, 2] > 1e-9, pc[:, 2], np.nan)

@@ -55,7 +55,7 @@ class Scenario:
 
     @property
     def n_frames(self) -> int:
-        """Frames in this run: one more than scenes, since a scene is a pair of consecutive frames."""
+        """Frames in this run: one more than scenes (a scene is a pair of consecutive frames)."""
         return self.n_scenes + 1
 
 

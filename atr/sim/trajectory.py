@@ -72,7 +72,7 @@ class Orbit:
     att_bias: np.ndarray
 
     def state(self, t_s: np.ndarray) -> ImuState:
-        """Exact position, velocity, acceleration, attitude and body rate at times t_s (N,), seconds."""
+        """Exact position, velocity, acceleration, attitude and body rate at times t_s (N,), s."""
         t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
         ang = self.phase0_rad + self.rate_radps * t
         w = self.rate_radps
@@ -182,6 +182,6 @@ def make_orbit(sc: Scenario, target_xyz: np.ndarray, rng: np.random.Generator,
     att_phase = rng.uniform(0, 2 * np.pi, (3, _N_WAVES))
     att_bias = rng.normal(0.0, np.deg2rad(config.pointing_bias_deg), 3)
     att_bias[2] = 0.0
-    return Orbit(center, float(radius), float(height), float(rate), float(rng.uniform(0,
-                                                                                      2 * np.pi)),
+    phase0 = float(rng.uniform(0, 2 * np.pi))
+    return Orbit(center, float(radius), float(height), float(rate), phase0,
                  pos_amp, pos_freq, pos_phase, att_amp, att_freq, att_phase, att_bias)

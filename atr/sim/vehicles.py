@@ -46,8 +46,8 @@ def _wheel(x: float, y: float, z: float, r: float, width: float, hub_mat: int, t
     """A wheel along y: tyre cylinder plus a slightly proud hub disc on the outer side."""
     side = np.sign(y) if y != 0 else 1.0
     tyre = cylinder(r, width, segments, tyre_mat, axis="y", center=(x, y, z))
-    hub = cylinder(0.55 * r, 0.02, segments, hub_mat, axis="y", center=(x,
-                                                                        y + side * (0.5 * width + 0.01), z))
+    hub_y = y + side * (0.5 * width + 0.01)
+    hub = cylinder(0.55 * r, 0.02, segments, hub_mat, axis="y", center=(x, hub_y, z))
     return merge([tyre, hub])
 
 
@@ -89,8 +89,8 @@ def t72() -> Mesh:
     for x in (-2.12, -1.28, -0.44, 0.40, 1.24, 2.08):
         side.append(_wheel(x, 1.42, 0.44, 0.375, 0.46, M.METAL, M.RUBBER))
     # stowage boxes and external fuel tanks on the fender
-    for x0, length, h in ((-2.9, 0.9, 0.38), (-1.8, 1.1, 0.42), (-0.5, 0.8, 0.36), (0.55, 1.0,
-                                                                                    0.40)):
+    boxes = ((-2.9, 0.9, 0.38), (-1.8, 1.1, 0.42), (-0.5, 0.8, 0.36), (0.55, 1.0, 0.40))
+    for x0, length, h in boxes:
         side.append(box((length, 0.36, h), (x0 + 0.5 * length, 1.50, 0.97 + 0.5 * h), M.CAMO))
     parts.append(_both_sides(merge(side)))
     # engine deck grilles and the driver's hatch on the glacis
@@ -149,7 +149,7 @@ def ifv(paint: int = M.OLIVE) -> Mesh:
 
 
 def truck_6x6(paint: int = M.OLIVE) -> Mesh:
-    """A 6x6 military truck (Ural-4320-like): bonneted cab, canvas-covered cargo bed, three axles."""
+    """A 6x6 military truck (Ural-4320-like): bonneted cab, canvas-covered bed, three axles."""
     parts: list[Mesh] = []
     parts.append(box((7.2, 1.0, 0.3), (-0.1, 0.0, 0.95), M.METAL))
     hood = np.array([[2.3, 1.05], [3.65, 1.05], [3.65, 1.65], [3.3, 1.95], [2.3, 1.98]])
@@ -163,8 +163,8 @@ def truck_6x6(paint: int = M.OLIVE) -> Mesh:
     parts.append(box((4.7, 2.5, 0.12), (-1.3, 0.0, 1.36), paint))  # bed floor
     for y in (-1.22, 1.22):
         parts.append(box((4.7, 0.06, 0.45), (-1.3, y, 1.64), paint))
-    cover = np.array([[-3.65, 1.8], [1.0, 1.8], [1.0, 2.6], [0.8, 2.88], [-3.45, 2.88], [-3.65,
-                                                                                         2.6]])
+    cover = np.array([[-3.65, 1.8], [1.0, 1.8], [1.0, 2.6], [0.8, 2.88], [-3.45, 2.88],
+                      [-3.65, 2.6]])
     parts.append(extrude_profile(cover, -1.2, 1.2, M.CANVAS))
     for x in (2.95, -0.85, -2.35):
         for y in (-1.0, 1.0):
@@ -178,8 +178,8 @@ def truck_6x6(paint: int = M.OLIVE) -> Mesh:
 def car(paint: int = M.PAINT_SILVER) -> Mesh:
     """A family sedan, 4.5 x 1.8 x 1.45 m, in the given paint material."""
     parts: list[Mesh] = []
-    body = np.array([[-2.25, 0.30], [2.1, 0.30], [2.25, 0.55], [2.2, 0.75], [1.15, 0.92], [-2.2,
-                                                                                           0.98],
+    body = np.array([[-2.25, 0.30], [2.1, 0.30], [2.25, 0.55], [2.2, 0.75], [1.15, 0.92],
+                     [-2.2, 0.98],
                      [-2.28, 0.6]])
     parts.append(extrude_profile(_convex_hull_2d(body), -0.88, 0.88, paint))
     cabin = np.array([[1.15, 0.92], [0.35, 1.42], [-1.05, 1.42], [-1.9, 0.97]])

@@ -18,7 +18,7 @@ _EPS_M = 0.03
 
 
 def raycasting_scene(meshes: list[Mesh]) -> tuple[o3d.t.geometry.RaycastingScene, list[int]]:
-    """An Open3D RaycastingScene with one geometry per mesh; returns the scene and the geometry ids."""
+    """An Open3D RaycastingScene with one geometry per mesh; returns the scene and geometry ids."""
     scene = o3d.t.geometry.RaycastingScene()
     ids = []
     for m in meshes:
@@ -28,7 +28,7 @@ def raycasting_scene(meshes: list[Mesh]) -> tuple[o3d.t.geometry.RaycastingScene
 
 
 def target_samples(target_local: Mesh, T_world_target: np.ndarray, n: int) -> np.ndarray:
-    """(n, 3) fixed surface samples of the target in the world frame (seeded by n, not by the world)."""
+    """(n, 3) fixed surface samples of the target in the world frame (seeded by n only)."""
     pts = target_local.sample_surface(n, np.random.default_rng([n, 0x7A46]))
     return pts @ T_world_target[:3, :3].T + T_world_target[:3, 3]
 
@@ -54,10 +54,10 @@ def first_hit_reaches(scene: o3d.t.geometry.RaycastingScene, origins: np.ndarray
     return t >= dist - (_EPS_M + 1e-4 * dist)
 
 
-def target_visibility_rays(static: Mesh, target_world: Mesh, target_local: Mesh,
-                           T_world_target: np.ndarray, cams: np.ndarray, cfg: SimConfig,
-                           n_samples: int | None = None) -> tuple[np.ndarray, np.ndarray,
-                                                                  np.ndarray]:
+def target_visibility_rays(
+    static: Mesh, target_world: Mesh, target_local: Mesh, T_world_target: np.ndarray,
+    cams: np.ndarray, cfg: SimConfig, n_samples: int | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Visibility of the target samples from camera centres, ignoring the image frame.
 
     Args:

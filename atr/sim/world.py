@@ -1,4 +1,4 @@
-"""The simulated urban world of a scenario run: terrain, streets, buildings, trees, vehicles, target.
+"""The simulated urban world of a scenario run: terrain, streets, buildings, trees, vehicles.
 
 A seed fixes the city (street grid, lots, buildings, trees, parked cars, confusers, the target's
 place and heading, the sun). A run then removes what its UAV orbit would fly into, and what could
@@ -46,10 +46,11 @@ class World:
         static: every surface except the target (terrain, buildings, trees, vehicles), world frame.
         target: the target mesh in the world frame.
         target_name: name of the target ("t72" or the name given for a custom mesh).
-        T_world_target: (4, 4) world-from-target pose (target frame: origin on the ground, x forward).
+        T_world_target: (4, 4) world-from-target pose (target frame: origin on the ground, x
+            forward).
         target_local: the target mesh in its own frame.
-        ground_rects: (K, 8) float64 ground map rectangles (cx, cy, half_u, half_v, cos, sin, material,
-            centre-line marking flag), last match wins.
+        ground_rects: (K, 8) float64 ground map rectangles (cx, cy, half_u, half_v, cos, sin,
+            material, centre-line marking flag), last match wins.
         sun_dir: (3,) unit vector from the ground towards the sun.
         orbit: the run's camera-head trajectory.
         occluder_width_m: width of the tuned occluder building (0 when the run needs none).
@@ -377,15 +378,13 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
                     x, y = to_world @ np.array([cu, cv])
                     if max(abs(x), abs(y)) > _CITY_HALF_M:
                         continue
-                    h = float(rng.choice([rng.uniform(5, 10), rng.uniform(10, 22), rng.uniform(18,
-                                                                                               32)],
-                                         p=[0.4, 0.45, 0.15]))
+                    heights = [rng.uniform(5, 10), rng.uniform(10, 22), rng.uniform(18, 32)]
+                    h = float(rng.choice(heights, p=[0.4, 0.45, 0.15]))
                     wall = M.BRICK if rng.random() < 0.3 else M.FACADE
                     mesh = building((fu, fv), h, rng, wall)
                     r = 0.5 * np.hypot(fu, fv)
-                    if keep.flyable(x, y, r, h + 3.0) and keep.cannot_hide(x, y, r,
-                                                                           h + 3.0) and free(x, y,
-                                                                                             r):
+                    allowed = keep.flyable(x, y, r, h + 3.0) and keep.cannot_hide(x, y, r, h + 3.0)
+                    if allowed and free(x, y, r):
                         add(mesh, x, y, grid_ang, r, h, "building", sink=0.0)
     # --- trees along sidewalks and in open places -------------------------------------------------
     n_trees = 0
@@ -470,7 +469,8 @@ def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Me
                     target_local: Mesh, T_world_target: np.ndarray, static: Mesh,
                     rng: np.random.Generator) -> tuple[Mesh | None, float, Callable]:
     """A tall building beside the target, widened until the run's share of scenes without a visible
-    target reaches the scenario's absent ratio (bisection on the width; ray-box tests, no re-meshing).
+    target reaches the scenario's absent ratio (bisection on the width; ray-box tests, no
+    re-meshing).
 
     Returns:
         the building (None when clutter alone already hides the target often enough), its width in

@@ -17,7 +17,8 @@ def _sig(frames):
     for f in frames:
         parts += [f.image.tobytes(), f.imu_t_ns.tobytes(), f.gyro_radps.tobytes(),
                   f.accel_mps2.tobytes(),
-                  f.T_world_cam.tobytes(), f.lidar_points_m.tobytes() if f.lidar_points_m is not None else b""]
+                  f.T_world_cam.tobytes(),
+                  f.lidar_points_m.tobytes() if f.lidar_points_m is not None else b""]
         parts += [t.T_world_target.tobytes() + repr(t.visible_fraction).encode() for t in f.targets]
     return b"".join(parts)
 
@@ -40,7 +41,8 @@ def test_frame_contents_and_imu_batches(small_cfg, world_s1r3):
     per = round(small_cfg.frame_interval_s(sc.range_m) * small_cfg.imu_rate_hz)
     assert [len(f.imu_t_ns) for f in fr] == [1, per, per]
     assert fr[1].imu_t_ns[-1] == fr[1].stamp_ns and fr[2].imu_t_ns[0] > fr[1].stamp_ns
-    assert np.all(np.diff(np.concatenate([f.imu_t_ns for f in fr])) == round(1e9 / small_cfg.imu_rate_hz))
+    step_ns = round(1e9 / small_cfg.imu_rate_hz)
+    assert np.all(np.diff(np.concatenate([f.imu_t_ns for f in fr])) == step_ns)
     for f in fr:
         assert f.image.shape == (240, 320, 3) and f.image.dtype == np.uint8
         np.testing.assert_allclose(f.T_world_cam, f.T_world_imu @ small_cfg.T_imu_cam_matrix)

@@ -7,7 +7,7 @@ from .conftest import look_at, toy_world
 
 
 def _smear_width(ren, rng_m, wall_x):
-    """Lateral width (m) of the band of LIDAR points floating between a wall edge and the ground behind."""
+    """Lateral width (m) of the band of LIDAR points floating between a wall edge and the ground."""
     # sensor looks straight down at a wall top edge (wall top at z = 10, ground at z = 0)
     T = look_at([wall_x, 0.0, 10.0 + rng_m], [wall_x, 0.0001, 0.0])
     # a fine grid (1 cm at 50 m) so the smear band is resolved at both ranges

@@ -15,8 +15,8 @@ def test_world_point_projects_where_renderer_draws_it(small_cfg):
     _, depth = ren.render(T)
     K = small_cfg.K
     rng = np.random.default_rng(0)
-    uv = np.column_stack([rng.integers(0, small_cfg.width_px, 200), rng.integers(0,
-                                                                                 small_cfg.height_px, 200)])
+    uv = np.column_stack([rng.integers(0, small_cfg.width_px, 200),
+                          rng.integers(0, small_cfg.height_px, 200)])
     rays_cam = np.column_stack([(uv[:, 0] - K[0, 2]) / K[0, 0], (uv[:, 1] - K[1, 2]) / K[1, 1],
                                 np.ones(len(uv))])
     rays_w = rays_cam @ T[:3, :3].T
