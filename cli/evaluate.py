@@ -102,15 +102,16 @@ def _flights(args: argparse.Namespace) -> list[Any]:
 
 
 def _arms(args: argparse.Namespace, config: Any) -> list[Any]:
+    from atr.baselines2d import PAIRS  # noqa: PLC0415
     from atr.evaluation.runner import Arm, pair_descriptor  # noqa: PLC0415
 
     pipelines = args.pipeline or ["gftt-sfm"]
     descriptors = args.descriptor or [config.recognition.descriptor]
     arms = []
     for p in pipelines:
-        if p.startswith("2d-"):
-            arms.append(Arm(p, pair_descriptor(p) if p in ("2d-1", "2d-2", "2d-3", "2d-4") else "?"))
-        else:
+        if p in PAIRS:
+            arms.append(Arm(p, pair_descriptor(p)))
+        else:  # Arm refuses an unknown pipeline or descriptor with a ConfigError naming it
             arms.extend(Arm(p, d) for d in descriptors)
     return list(dict.fromkeys(arms))
 
@@ -397,6 +398,8 @@ def execute(plan_: Plan, *, jobs: int = 1, via_services: bool = False, force: bo
 
 def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[dict], list[dict]]:
     """The contract rows (results.json) and the detailed rows (details.json) of every run."""
+    import numpy as np  # noqa: PLC0415
+
     from atr.evaluation.io import jsonable  # noqa: PLC0415
     from atr.evaluation.scoring import summarise  # noqa: PLC0415
     from atr.sim.scenarios import scenario as preset  # noqa: PLC0415
@@ -418,8 +421,7 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
                 "seed": flight.seed, "frames": flight.frames, "target": flight.target, "tn": s.counts.tn,
                 "range_m": sc.range_m, "obliquity_deg": sc.obliquity_deg, "scenes_with_target": s.scenes_with_target,
                 "errors": s.errors, "t_errors_m": list(s.t_errors_m), "stages_ms": s.stages_ms,
-                "cloud_points_median": float(__import__("numpy").median([r.cloud_points for r in records]))
-                if records else None,
+                "cloud_points_median": float(np.median([r.cloud_points for r in records])) if records else None,
                 "template_storage_kb": storage}))
     return contract, details
 
