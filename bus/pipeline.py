@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import socket
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+
+import zenoh
 
 from bus.launcher import Supervisor, load_layout, observer_session, wait_until_ready
 from bus.replayer import Replayer
@@ -29,81 +32,64 @@ def free_hub_endpoint() -> str:
         return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
-def _start(layout_name: str, out: Path, overrides: list[str], skip_roles: tuple[str, ...],
-           extra_args: dict[str, list[str]] | None = None) -> Supervisor:
+@contextmanager
+def _running(layout_name: str, out: Path, overrides: list[str], ready_timeout_s: float,
+             result: RunResult) -> Iterator[tuple[Supervisor, zenoh.Session, str]]:
+    """The layout (without its source) up and ready, an observer session on its bus, and the vehicle id.
+
+    Stops everything on exit and records which processes failed in `result`.
+    """
     layout = load_layout(layout_name, {"out": str(out), "hub": free_hub_endpoint()})
-    if extra_args:
-        from dataclasses import replace  # noqa: PLC0415
-
-        layout = replace(layout, processes=tuple(
-            replace(p, args=p.args + tuple(extra_args.get(p.name, ()))) for p in layout.processes
-        ))
-    supervisor = Supervisor(layout, overrides=overrides, skip_roles=skip_roles,
-                            log_dir=out.with_suffix(".logs"))
+    supervisor = Supervisor(layout, overrides=overrides, skip_roles=("source",), log_dir=result.log_dir)
     supervisor.start()
-    return supervisor
-
-
-def run_recording(input_path: Path, out: Path, *, layout: str = "local", overrides: list[str] = (),
-                  answer_timeout_s: float = 600.0, ready_timeout_s: float = 900.0) -> RunResult:
-    """Replay `input_path` through `layout` in lock-step, recording everything into `out`."""
-    supervisor = _start(layout, out, list(overrides), ("source",))
-    result = RunResult(log_dir=out.with_suffix(".logs"))
     try:
-        session = observer_session(supervisor.layout)
+        session = observer_session(layout)
         try:
-            uav = supervisor.layout.variables.get("uav", "uav1")
-            services = [p.name for p in supervisor.specs if p.role not in ("hub",)]
+            uav = layout.variables.get("uav", "uav1")
+            services = [p.name for p in supervisor.specs if p.role != "hub"]
             wait_until_ready(session, uav, services, ready_timeout_s, supervisor)
-            with Replayer(input_path, session, uav=uav) as replayer:
-                stats = replayer.lock_step(answer_timeout_s=answer_timeout_s)
-            result.frames, result.timeouts = stats.frames, stats.timeouts
+            yield supervisor, session, uav
             time.sleep(0.5)  # the last answers reach the recorder
         finally:
             session.close()
     finally:
         supervisor.stop()
-        result.failures = supervisor.failures()
+        result.failures |= supervisor.failures()
+
+
+def run_recording(input_path: Path, out: Path, *, layout: str = "local", overrides: list[str] = (),
+                  answer_timeout_s: float = 600.0, ready_timeout_s: float = 900.0) -> RunResult:
+    """Replay `input_path` through `layout` in lock-step, recording everything into `out`."""
+    result = RunResult(log_dir=out.with_suffix(".logs"))
+    with _running(layout, out, list(overrides), ready_timeout_s, result) as (_, session, uav):
+        with Replayer(input_path, session, uav=uav) as replayer:
+            stats = replayer.lock_step(answer_timeout_s=answer_timeout_s)
+        result.frames, result.timeouts = stats.frames, stats.timeouts
     return result
 
 
 def fly_layout(out: Path, *, layout: str = "local", overrides: list[str] = (),
                source_args: list[str] = (), ready_timeout_s: float = 900.0,
-               on_session: Callable[[object], None] | None = None,
+               on_session: Callable[[zenoh.Session], None] | None = None,
                flight_timeout_s: float = 3600.0) -> RunResult:
     """Start the whole layout, its sensor source flying with `source_args`, until the source is done.
 
     `on_session(session)` is called with an observer session before the flight starts (progress display).
     """
-    supervisor = _start(layout, out, list(overrides), ("source",))
     result = RunResult(log_dir=out.with_suffix(".logs"))
-    try:
-        session = observer_session(supervisor.layout)
-        try:
-            uav = supervisor.layout.variables.get("uav", "uav1")
-            services = [p.name for p in supervisor.specs if p.role != "hub"]
-            wait_until_ready(session, uav, services, ready_timeout_s, supervisor)
-            if on_session is not None:
-                on_session(session)
-            source = next(p for p in supervisor.layout.processes if p.role == "source")
-            from dataclasses import replace  # noqa: PLC0415
-
-            source = replace(source, args=source.args + tuple(source_args))
-            popen = supervisor.spawn_once(source)
-            deadline = time.monotonic() + flight_timeout_s
-            while popen.poll() is None and time.monotonic() < deadline:
-                supervisor.poll()
-                time.sleep(0.2)
-            if popen.poll() is None:
-                popen.terminate()
-            if popen.wait() != 0:
-                result.failures[source.name] = [popen.returncode]
-            time.sleep(0.5)
-        finally:
-            session.close()
-    finally:
-        supervisor.stop()
-        result.failures |= supervisor.failures()
+    with _running(layout, out, list(overrides), ready_timeout_s, result) as (supervisor, session, _):
+        if on_session is not None:
+            on_session(session)
+        source = next(p for p in supervisor.layout.processes if p.role == "source")
+        popen = supervisor.spawn_once(replace(source, args=source.args + tuple(source_args)))
+        deadline = time.monotonic() + flight_timeout_s
+        while popen.poll() is None and time.monotonic() < deadline:
+            supervisor.poll()
+            time.sleep(0.2)
+        if popen.poll() is None:
+            popen.terminate()
+        if popen.wait() != 0:
+            result.failures[source.name] = [popen.returncode]
     return result
 
 
