@@ -167,8 +167,8 @@ class Recorder:
             if item is not None and self.failure is None:
                 try:
                     self._write(*item)
-                except (OSError, RecordingError) as exc:
-                    self._fail(item[1], exc)
+                except Exception as exc:  # noqa: BLE001 - the writer thread must not die silently:
+                    self._fail(item[1], exc)  # report, stop recording, close() raises it
                 if self._writer.pending_messages == 1:
                     first_pending_ns = now
                 depth = self._queue.qsize()
