@@ -12,10 +12,12 @@ from __future__ import annotations
 
 import argparse
 import logging
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from atr.config import AtrConfig, load_config
 from bus.node import Node, setup_logging
+
+if TYPE_CHECKING:
+    from atr.config import AtrConfig
 
 
 def service_arguments(name: str, description: str | None) -> argparse.ArgumentParser:
@@ -37,6 +39,8 @@ def service_arguments(name: str, description: str | None) -> argparse.ArgumentPa
 
 def effective_config(args: argparse.Namespace) -> AtrConfig:
     """The config a service runs with: defaults, then --config, then --set."""
+    from atr.config import load_config  # noqa: PLC0415 - the algorithms' configs import Open3D
+
     return load_config(args.config, args.overrides)
 
 

@@ -17,14 +17,9 @@ from pathlib import Path
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr simulate`."""
-    parser.add_argument("--scenario", type=int, default=1, help="Table II scenario (1, 2, 3)")
-    parser.add_argument("--run", type=int, default=3, help="run within the scenario (1-based; 3 = 30 deg)")
-    parser.add_argument("--frames", type=int, help="stop after this many frames")
-    parser.add_argument("--seed", type=int, default=0, help="world seed (other seeds build other worlds)")
-    parser.add_argument("--lidar", action="store_true", help="also simulate the LIDAR baseline's scans")
-    parser.add_argument("--noise", help="noise spec: shot, gaussian:10, gaussian:30, or combined with commas")
-    parser.add_argument("--target-mesh", help="mesh file (PLY/OBJ/STL/GLB) replacing the T-72")
-    parser.add_argument("--clutter-mesh", action="append", default=[], help="extra confuser mesh (repeatable)")
+    from services.sensor_source.main import add_flight_arguments  # noqa: PLC0415
+
+    add_flight_arguments(parser)
     parser.add_argument("--uav", default="uav1", help="vehicle id in the keys")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE")
     parser.add_argument("--out", type=Path, required=True, help="output MCAP file")

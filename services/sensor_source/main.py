@@ -15,6 +15,7 @@ Example:
 
 from __future__ import annotations
 
+import argparse
 import logging
 import threading
 import time
@@ -24,11 +25,14 @@ from typing import Any
 
 import numpy as np
 
-from atr.config import AtrConfig
-from atr.sim.flight import SensorFrame, simulate_flight
-from atr.sim.scenarios import scenario as scenario_preset
+from typing import TYPE_CHECKING
+
 from bus import codec, keys
 from bus.service import effective_config, service_arguments, start_node
+
+if TYPE_CHECKING:  # the simulator (Open3D) loads only when a flight is flown, not for `atr --help`
+    from atr.config import AtrConfig
+    from atr.sim.flight import SensorFrame
 
 log = logging.getLogger("atr")
 
@@ -64,11 +68,25 @@ def frame_messages(frame: SensorFrame, uav: str, scenario: int, run: int, seed: 
     }
 
 
+def add_flight_arguments(parser: argparse.ArgumentParser) -> None:
+    """The arguments that choose a simulated flight (shared with `atr simulate`)."""
+    parser.add_argument("--scenario", type=int, default=1, help="Table II scenario (1, 2, 3)")
+    parser.add_argument("--run", type=int, default=3, help="run within the scenario (1-based; 3 = 30 deg)")
+    parser.add_argument("--frames", type=int, help="stop after this many frames")
+    parser.add_argument("--seed", type=int, default=0, help="world seed (other seeds build other worlds)")
+    parser.add_argument("--lidar", action="store_true", help="also simulate the LIDAR baseline's scans")
+    parser.add_argument("--noise", help="noise spec: shot, gaussian:10, gaussian:30, or combined with commas")
+    parser.add_argument("--target-mesh", help="mesh file (PLY/OBJ/STL/GLB) replacing the T-72")
+    parser.add_argument("--clutter-mesh", action="append", default=[], help="extra confuser mesh (repeatable)")
+
+
 def flight_frames(config: AtrConfig, scenario: int, run: int, frames: int | None, seed: int,
                   lidar: bool, noise: str | None, target_mesh: str | None = None,
                   clutter_meshes: tuple[str, ...] = ()) -> Iterator[SensorFrame]:
     """The simulated frames of a run, with optional mesh files for the target and extra confusers."""
     from atr.io.mesh import load_mesh  # noqa: PLC0415
+    from atr.sim.flight import simulate_flight  # noqa: PLC0415
+    from atr.sim.scenarios import scenario as scenario_preset  # noqa: PLC0415
 
     target = load_mesh(target_mesh) if target_mesh else None
     clutter = [load_mesh(p) for p in clutter_meshes]
@@ -108,14 +126,7 @@ class AnswerWatch:
 def main(argv: list[str] | None = None) -> int:
     """Fly the run, then exit."""
     parser = service_arguments("sensor_source", __doc__)
-    parser.add_argument("--scenario", type=int, default=1, help="Table II scenario (1, 2, 3)")
-    parser.add_argument("--run", type=int, default=3, help="run within the scenario (1-based)")
-    parser.add_argument("--frames", type=int, help="stop after this many frames")
-    parser.add_argument("--seed", type=int, default=0, help="world seed")
-    parser.add_argument("--lidar", action="store_true", help="also publish LIDAR scans")
-    parser.add_argument("--noise", help="noise spec, e.g. shot, gaussian:10")
-    parser.add_argument("--target-mesh", help="mesh file replacing the T-72")
-    parser.add_argument("--clutter-mesh", action="append", default=[], help="extra confuser mesh (repeatable)")
+    add_flight_arguments(parser)
     parser.add_argument("--pace", choices=["realtime", "fast", "lock-step"], default="lock-step")
     parser.add_argument("--answer-timeout", type=float, default=600.0, help="lock-step wait per frame, s")
     args = parser.parse_args(argv)
