@@ -347,29 +347,33 @@ class Node:
 
     # Status ----------------------------------------------------------------------------------
 
+    def extra_status(self) -> dict[str, Any]:
+        """Fields a subclass adds to (or replaces in) its Status: e.g. more counters. None by default."""
+        return {}
+
     def _publish_status(self, state: str) -> None:
         c = self.counters
-        self.publish(
-            keys.service_key(self.uav, self.service, "status"),
-            {
-                "stamp_ns": time.time_ns(),
-                "service": self.service,
-                "uav": self.uav,
-                "host": socket.gethostname(),
-                "pid": os.getpid(),
-                "state": state,
-                "uptime_s": time.monotonic() - self._started,
-                "counters": {
-                    "received": c.received,
-                    "handled": c.handled,
-                    "published": c.published,
-                    "errors": c.errors,
-                    "gaps": c.gaps,
-                    "dropped": c.dropped,
-                },
-                "handled_by_key": dict(c.handled_by_key),
+        status = {
+            "stamp_ns": time.time_ns(),
+            "service": self.service,
+            "uav": self.uav,
+            "host": socket.gethostname(),
+            "pid": os.getpid(),
+            "state": state,
+            "uptime_s": time.monotonic() - self._started,
+            "counters": {
+                "received": c.received,
+                "handled": c.handled,
+                "published": c.published,
+                "errors": c.errors,
+                "gaps": c.gaps,
+                "dropped": c.dropped,
             },
-        )
+            "handled_by_key": dict(c.handled_by_key),
+        }
+        extra = self.extra_status()
+        status["counters"] |= extra.pop("counters", {})
+        self.publish(keys.service_key(self.uav, self.service, "status"), status | extra)
 
     def _beat(self) -> None:
         while True:

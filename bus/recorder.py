@@ -22,9 +22,7 @@
 from __future__ import annotations
 
 import logging
-import os
 import queue
-import socket
 import threading
 import time
 from dataclasses import dataclass, field
@@ -290,41 +288,14 @@ class RecorderNode(Node):
 
     recorder: Recorder | None = None
 
-    def _publish_status(self, state: str) -> None:
-        # Node's Status plus the recorder's counters (Status.counters allows any integer counter).
-        c = self.counters
-        counters = {
-            "received": c.received,
-            "handled": c.handled,
-            "published": c.published,
-            "errors": c.errors,
-            "gaps": c.gaps,
-            "dropped": c.dropped,
-        }
-        if self.recorder is not None:
-            s = self.recorder.stats
-            counters |= {
-                "messages": s.messages,
-                "bytes": s.bytes,
-                "channels": s.channels,
-                "gaps": s.gaps,
-                "queue_max": s.queue_max,
-                "unstamped": s.unstamped,
-            }
-        self.publish(
-            keys.service_key(self.uav, self.service, "status"),
-            {
-                "stamp_ns": time.time_ns(),
-                "service": self.service,
-                "uav": self.uav,
-                "host": socket.gethostname(),
-                "pid": os.getpid(),
-                "state": state,
-                "uptime_s": time.monotonic() - self._started,
-                "counters": counters,
-                "handled_by_key": self._by_topic(),
-            },
-        )
+    def extra_status(self) -> dict[str, Any]:
+        """The recorder's counters, and messages recorded per topic as handled_by_key."""
+        if self.recorder is None:
+            return {}
+        s = self.recorder.stats
+        counters = {"messages": s.messages, "bytes": s.bytes, "channels": s.channels, "gaps": s.gaps,
+                    "queue_max": s.queue_max, "unstamped": s.unstamped}
+        return {"counters": counters, "handled_by_key": self._by_topic()}
 
     def _by_topic(self) -> dict[str, int]:
         if self.recorder is None:

@@ -29,6 +29,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     recover.add_argument("src", metavar="IN")
     recover.add_argument("dst", metavar="OUT")
+    export = sub.add_parser(
+        "export-foxglove", help="write a copy with Foxglove's schemas (images, clouds, poses, detections)"
+    )
+    export.add_argument("src", metavar="IN")
+    export.add_argument("dst", metavar="OUT")
 
 
 def _stamp(ns: int | None) -> str:
@@ -67,6 +72,14 @@ def run(args: argparse.Namespace) -> int:
         if problems:
             return 1
         print("OK")
+        return 0
+    if args.mcap_command == "export-foxglove":
+        from bus.foxglove_export import export_foxglove
+
+        counts = export_foxglove(args.src, args.dst)
+        for topic, n in sorted(counts.items()):
+            print(f"  {topic:<28} {n:>6}")
+        print(f"wrote {sum(counts.values())} messages to {args.dst}")
         return 0
     result = mcap_tools.recover(args.src, args.dst)
     print(

@@ -23,7 +23,7 @@ from pathlib import Path
 from atr.config import AtrConfig
 from atr.recognition import DESCRIPTORS, build_template
 from atr.recognition.template import TEMPLATE_VERSION
-from bus import codec, keys
+from bus import codec
 from bus.launcher import REPO
 from bus.service import effective_config, service_arguments, start_node
 
