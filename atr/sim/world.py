@@ -302,7 +302,9 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
     def ground(x, y):
         return terrain_height(x, y, waves, target_xy)
 
-    T_world_target = pose(rot_z(heading), (target_xy[0], target_xy[1], 0.0))
+    # a mesh whose origin is not on its lowest point (common in CAD files) still stands on the ground
+    base_z = -float(tmesh.bounds()[0][2])
+    T_world_target = pose(rot_z(heading), (target_xy[0], target_xy[1], base_z))
     target_world = tmesh.transformed(T_world_target)
 
     # --- the run's orbit (seed, scenario, run) ----------------------------------------------------
@@ -442,7 +444,8 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
             a = rng.uniform(0, 2 * np.pi)
             x, y = target_xy + d * np.array([np.cos(a), np.sin(a)])
             if free(x, y, r) and keep.flyable(x, y, r, float(hi[2])):
-                add(mesh, x, y, rng.uniform(0, 2 * np.pi), r, float(hi[2]), "confuser")
+                add(mesh, x, y, rng.uniform(0, 2 * np.pi), r, float(hi[2] - lo[2]), "confuser",
+                    sink=float(lo[2]))
                 break
 
     terrain = _terrain_mesh(waves, target_xy)

@@ -80,3 +80,13 @@ def test_bad_frames_argument(small_cfg, world_s1r3):
 
     with pytest.raises(ConfigError):
         next(simulate_flight(scenario(1, 3), frames=0, config=small_cfg, world=world_s1r3))
+
+
+def test_target_mesh_with_origin_above_its_base_stands_on_the_ground(small_cfg):
+    from atr.sim.mesh import pose
+
+    lifted = truck_6x6().transformed(pose(None, (0.0, 0.0, -1.5)))  # origin 1.5 m above the wheels
+    sc = custom_scenario(50.0, 30.0, n_scenes=1)
+    world = build_world(sc, 4, target_mesh=lifted, config=small_cfg)
+    assert world.target.bounds()[0][2] == pytest.approx(0.0, abs=1e-9)
+    assert world.T_world_target[2, 3] == pytest.approx(1.5)
