@@ -34,7 +34,6 @@ _TARGET_TOP_M = 2.2  # a building lower than this above the line of sight cannot
 _CLEAR_AROUND_TARGET_M = 9.0  # no building or tree this close to the target, metres
 # horizontal and vertical margin kept between the orbit and any object, metres
 _UAV_CLEARANCE_M = 8.0
-_TUNING_SAMPLES = 400  # target surface samples used when tuning the occluder
 
 
 @dataclass(frozen=True)
@@ -485,7 +484,7 @@ def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Me
     times = frame_times_s(sc, cfg)
     cams = np.array([(orbit.T_world_imu(t) @ cfg.T_imu_cam_matrix)[:3, 3] for t in times])
     pts, seen, self_vis = target_visibility_rays(static, target_world, target_local, T_world_target,
-                                                 cams, cfg, n_samples=_TUNING_SAMPLES)
+                                                 cams, cfg)
     n_self = np.maximum(self_vis.sum(axis=1), 1)
     ends = np.broadcast_to(pts, (cams.shape[0],) + pts.shape)
     txy = T_world_target[:2, 3]
