@@ -39,6 +39,8 @@ class Scenario:
         lidar_resolution_m: LIDAR point spacing on the target, metres (Table II "resolution").
         absent_ratio: share of the scenario's scenes without the target (Table II).
         n_runs: runs in this scenario.
+        absent_scenes: scenes of this run without the target: the scenario's Table II count split
+            over its runs like the scenes.
         run_obliquities_deg: obliquities of every run of the scenario (the world keeps all their
         orbits clear).
     """
@@ -52,6 +54,7 @@ class Scenario:
     absent_ratio: float
     n_runs: int
     run_obliquities_deg: tuple[float, ...]
+    absent_scenes: int = 0
 
     @property
     def n_frames(self) -> int:
@@ -72,6 +75,8 @@ def scenario(number: int, run: int) -> Scenario:
     if not 1 <= run <= n_runs:
         raise ConfigError(f"run {run} of scenario {number} must be in 1..{n_runs}")
     per_run = [total // n_runs + (1 if i < total % n_runs else 0) for i in range(n_runs)]
+    absent = total - with_target
+    absent_per_run = [absent // n_runs + (1 if i < absent % n_runs else 0) for i in range(n_runs)]
     return Scenario(
         scenario=number,
         run=run,
@@ -82,6 +87,7 @@ def scenario(number: int, run: int) -> Scenario:
         absent_ratio=(total - with_target) / total,
         n_runs=n_runs,
         run_obliquities_deg=obliquities,
+        absent_scenes=absent_per_run[run - 1],
     )
 
 

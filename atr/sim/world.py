@@ -450,7 +450,7 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
     terrain = _terrain_mesh(waves, target_xy)
     occluder_width = 0.0
     occ = None
-    if sc.absent_ratio > 0:
+    if sc.absent_scenes > 0:
         occ, occluder_width, inside = _tuned_occluder(
             sc, cfg, orbit, target_world, tmesh, T_world_target,
             merge([terrain] + [it.mesh for it in items]), rng)
@@ -507,15 +507,17 @@ def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Me
         scene_present = present[:-1] & present[1:]
         return 1.0 - scene_present.mean()
 
-    if hidden_share(0.0) >= sc.absent_ratio:
+    # the run's share of Table II's scenes without target (half a scene below: integer counts)
+    wanted = (sc.absent_scenes - 0.5) / sc.n_scenes
+    if hidden_share(0.0) >= wanted:
         return None, 0.0, lambda x, y, r: False
     lo, hi = 0.0, 120.0
-    if hidden_share(hi) < sc.absent_ratio:
+    if hidden_share(hi) < wanted:
         lo = hi
     else:
         for _ in range(10):
             mid = 0.5 * (lo + hi)
-            if hidden_share(mid) < sc.absent_ratio:
+            if hidden_share(mid) < wanted:
                 lo = mid
             else:
                 hi = mid

@@ -15,6 +15,8 @@ def test_table_ii_scene_counts_and_geometry():
     assert scenario(1, 1).absent_ratio == pytest.approx(11 / 345)
     assert scenario(3, 1).absent_ratio == 0.0
     assert scenario(1, 1).n_frames == scenario(1, 1).n_scenes + 1
+    absent = {s: sum(r.absent_scenes for r in runs if r.scenario == s) for s in (1, 2, 3)}
+    assert absent == {1: 345 - 334, 2: 364 - 327, 3: 0}
 
 
 @pytest.mark.parametrize("number,run", [(4, 1), (1, 0), (1, 5), (3, 2)])
