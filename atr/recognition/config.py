@@ -62,10 +62,36 @@ class RecognitionConfig:
         max_scene_points: scenes larger than this are refused (InputError) before any work.
         max_scene_keypoints: at most this many filtered scene vertices are described (evenly thinned,
             deterministic); bounds the describe time on dense LIDAR scenes.
+        ground_vehicles: the targets are ground vehicles in a z-up world frame (template frame: origin on the
+            ground, z up, as ``atr.sim.vehicles``). Then the scene's ground is estimated
+            (``steps.height_above_ground``) and removed from the description surface, the template is cut
+            at the same height, and keypoints are restricted to the height band a target can occupy. It
+            replaces the smooth-surface filter's job on the ground, which SfM noise defeats
+            (docs/recognition.md). Applied only when every template says it stands on the ground.
+        k_ground_cell: ground grid cell / resolution (1.5 m cells: several SfM points per cell).
+        k_ground_window: half-size of the ground percentile window / resolution (4.5 m: wider than half a
+            T-72, so the ground around a vehicle wins over its roof).
+        ground_percentile: percentile of the window's lowest-point cells taken as ground.
+        k_ground_cut: scene vertices less than this / resolution above the ground are ground; template
+            vertices lower than it above the model's base are dropped alike.
+        k_keypoint_min_height: keypoints lie at least this / resolution above the ground (and at most the
+            tallest template's height above it).
+        hough_yaw_bin_deg: heading bin of the upright Hough grouping (``steps.group_upright_hough``), used
+            for ground vehicles instead of pairwise consistency; 10 deg moves a point 3.5 m from the
+            centre by 0.6 m, about one accumulator cell.
+        k_hough_cell: position cell of the Hough accumulator / resolution.
+        k_height_tol: a correspondence is kept only if the scene vertex's height above the ground and the
+            model vertex's height differ by less than this / resolution (SfM depth noise ~ 0.1-0.3 m).
+        view_yaw_margin_deg: with per-view templates and a known camera position, a view votes only for
+            headings that put the camera within half the view spacing plus this margin of its azimuth.
         template_samples_per_m2: dense surface sampling of the CAD mesh before HPR (§II-A), points per m^2.
-        template_elevation_deg: elevation of the aerial viewpoint(s) of the template's HPR (§II-A); 30 deg is
+        template_elevations_deg: elevations of the HPR viewpoint rings (§II-A); each ring has a view per
+            azimuth, and the matcher uses for each scene vertex the ring nearest the camera's elevation seen
+            from it (the camera position is known). 30 deg is
             the paper's medium obliquity, from which its 2D templates were taken (§III-D).
-        template_azimuths_deg: azimuths of the HPR viewpoints whose union is the template; one view is the
+        template_azimuths_deg: azimuths of the HPR viewpoints; each (azimuth, elevation) is a separate view of the
+            template, matched, grouped and verified on its own (12 views every 30 deg: measured in
+            docs/recognition.md, one view only recognises within about +-30 deg of it). One view is the
             paper's choice (§II-A), several cover the orbit's 360 deg (docs/recognition.md).
         template_distance_m: distance of the HPR viewpoints from the model centre (scenario 1 range, Table II).
         hpr_radius_factor: Open3D HPR spherical-flip radius as a multiple of the viewpoint distance
@@ -73,14 +99,14 @@ class RecognitionConfig:
     """
 
     resolution_m: float = 0.3
-    normal_k: int = 6
+    normal_k: int = 15
     knndr_k: int = 10
     ransac_iterations: int = 1000
     descriptor: str = "shot"
-    k_support_radius: float = 5.0
+    k_support_radius: float = 10.0
     smooth_angle_rad: float = math.radians(10.0)
-    knndr_ratio: float = 0.8
-    max_correspondences: int = 3000
+    knndr_ratio: float = 1.0
+    max_correspondences: int = 20000
     k_consensus: float = 2.0
     min_group_size: int = 5
     max_groups: int = 10
@@ -88,16 +114,26 @@ class RecognitionConfig:
     k_icp_gate: float = 2.0
     icp_iterations: int = 30
     k_overlap: float = 1.0
-    min_overlap: float = 0.5
+    min_overlap: float = 0.4
     min_overlap_vertices: int = 20
-    max_clutter: float = 0.3
+    max_clutter: float = 0.5
     k_ground_slab: float = 2.0
     k_nms: float = 10.0
     max_scene_points: int = 5_000_000
     max_scene_keypoints: int = 20_000
+    ground_vehicles: bool = True
+    k_ground_cell: float = 5.0
+    k_ground_window: float = 15.0
+    ground_percentile: float = 20.0
+    k_ground_cut: float = 1.0
+    k_keypoint_min_height: float = 1.5
+    hough_yaw_bin_deg: float = 10.0
+    k_hough_cell: float = 3.0
+    k_height_tol: float = 1.5
+    view_yaw_margin_deg: float = 15.0
     template_samples_per_m2: float = 400.0
-    template_elevation_deg: float = 30.0
-    template_azimuths_deg: tuple[float, ...] = (0.0,)
+    template_elevations_deg: tuple[float, ...] = (30.0,)
+    template_azimuths_deg: tuple[float, ...] = tuple(30.0 * i for i in range(12))
     template_distance_m: float = 50.0
     hpr_radius_factor: float = 100.0
 
@@ -107,7 +143,11 @@ class RecognitionConfig:
             raise ConfigError(f"descriptor {self.descriptor!r} must be one of {DESCRIPTORS}")
         for f in fields(self):
             value = getattr(self, f.name)
-            if f.name in ("descriptor", "template_azimuths_deg", "template_elevation_deg"):
+            if f.name in ("descriptor", "template_azimuths_deg", "template_elevations_deg"):
+                continue
+            if f.name == "ground_vehicles":
+                if not isinstance(value, bool):
+                    raise ConfigError(f"ground_vehicles = {value!r} must be true or false")
                 continue
             if not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
                 raise ConfigError(f"{f.name} = {value!r} must be a finite number > 0")
@@ -123,11 +163,15 @@ class RecognitionConfig:
             raise ConfigError(f"min_overlap = {self.min_overlap} must be in (0, 1]")
         if self.min_group_size < 3:
             raise ConfigError(f"min_group_size = {self.min_group_size} must be >= 3 (a pose needs 3)")
+        if not 0 <= self.ground_percentile <= 100:
+            raise ConfigError(f"ground_percentile = {self.ground_percentile} must be in [0, 100]")
         if not self.template_azimuths_deg:
             raise ConfigError("template_azimuths_deg is empty; at least one HPR viewpoint is needed")
-        if not -90.0 < self.template_elevation_deg <= 90.0:
+        if not self.template_elevations_deg or not all(
+            -90.0 < e <= 90.0 for e in self.template_elevations_deg
+        ):
             raise ConfigError(
-                f"template_elevation_deg = {self.template_elevation_deg} must be in (-90, 90]"
+                f"template_elevations_deg = {self.template_elevations_deg} must be non-empty, each in (-90, 90]"
             )
 
     # Derived thresholds, metres.
@@ -160,6 +204,11 @@ class RecognitionConfig:
     def ground_slab_m(self) -> float:
         """Height of the ground slab ignored by the clutter measure, metres."""
         return self.k_ground_slab * self.resolution_m
+
+    @property
+    def ground_cut_m(self) -> float:
+        """Height below which scene and template vertices count as ground, metres."""
+        return self.k_ground_cut * self.resolution_m
 
     @property
     def nms_m(self) -> float:

@@ -21,9 +21,13 @@ from atr.errors import ConfigError, InputError
 from atr.recognition import _backend
 from atr.recognition.config import RecognitionConfig
 from atr.recognition.steps import (
+    Correspondences,
+    descriptor_sq_distances,
     filter_smooth_surfaces,
     group_geometrically_consistent,
-    match_knndr,
+    group_upright_hough,
+    height_above_ground,
+    knndr_from_distances,
     ransac_per_group,
     uniform_subsample,
     verify_with_icp,
@@ -32,6 +36,7 @@ from atr.recognition.template import Template, model_extent_m
 
 STAGES: tuple[str, ...] = (
     "subsample",
+    "ground",
     "normals",
     "filter",
     "describe",
@@ -182,9 +187,32 @@ def recognize(
     if not templates:
         return empty("no templates given")
 
+    band = None
+    if config.ground_vehicles and all(tpl.params.get("on_ground") for tpl in templates):
+        # Ground vehicles: drop the ground from the description surface, keep keypoints in the band
+        # of heights a target occupies (docs/recognition.md, "Ground").
+        height = height_above_ground(
+            surface,
+            config.k_ground_cell * config.resolution_m,
+            config.k_ground_window * config.resolution_m,
+            config.ground_percentile,
+        )
+        top = max(float(np.asarray(tpl.points_m)[:, 2].max()) for tpl in templates)
+        above = height >= config.ground_cut_m
+        surface, height = surface[above], height[above]
+        band = (height >= config.k_keypoint_min_height * config.resolution_m) & (
+            height <= top + config.ground_cut_m
+        )
+        stats["above_ground_points"] = int(len(surface))
+        if len(surface) < config.normal_k + 1:
+            return empty(f"only {len(surface)} scene vertices stand above the ground")
+    t = clock.add("ground", t)
+
     normals = _backend.estimate_normals(surface, config.normal_k, viewpoint_m)
     t = clock.add("normals", t)
     keep = filter_smooth_surfaces(surface, normals, config.normal_k, config.smooth_angle_rad)
+    if band is not None:
+        keep &= band
     kp_idx = np.flatnonzero(keep)
     if len(kp_idx) > config.max_scene_keypoints:
         kp_idx = np.sort(rng.choice(kp_idx, size=config.max_scene_keypoints, replace=False))
@@ -193,13 +221,14 @@ def recognize(
     if len(kp_idx) < config.min_group_size:
         return empty(f"only {len(kp_idx)} scene vertices survive the smooth-surface filter")
     keypoints = surface[kp_idx]
+    kp_height = None if band is None else height[kp_idx]
 
     scene_tree = cKDTree(surface)
     scene_cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(surface))
     scene_desc: dict[tuple[str, float], np.ndarray] = {}
     candidates: list[tuple[Detection, np.ndarray, float]] = []
     per_target: list[dict[str, Any]] = []
-    hyp_log: list[tuple[str, float, int, float]] = []
+    hyp_log: list[tuple] = []
     for tpl in templates:
         key = (tpl.descriptor, float(tpl.radius_m))
         t = time.perf_counter()
@@ -208,32 +237,93 @@ def recognize(
                 tpl.descriptor, surface, normals, kp_idx, tpl.radius_m
             )
         t = clock.add("describe", t)
-        corr = match_knndr(
-            scene_desc[key],
-            tpl.descriptors,
-            config.knndr_k,
-            config.knndr_ratio,
-            config.max_correspondences,
-        )
+        d2 = descriptor_sq_distances(scene_desc[key], tpl.descriptors)
+        views = tpl.view_slices()
+        matches = [
+            knndr_from_distances(
+                d2[:, ksl], config.knndr_k, config.knndr_ratio, config.max_correspondences
+            )
+            for _, ksl in views
+        ]
         t = clock.add("match", t)
-        model_kp = np.asarray(tpl.keypoints_m, np.float64)
-        groups = group_geometrically_consistent(
-            keypoints, model_kp, corr, config.consensus_m, config.min_group_size, config.max_groups
-        )
+        model_kp_all = np.asarray(tpl.keypoints_m, np.float64)
+        view_az = tpl.params.get("view_azimuths_deg")
+        view_el = tpl.params.get("view_elevations_deg")
+        ring_of_vertex = None
+        if (
+            viewpoint_m is not None
+            and view_az is not None
+            and view_el is not None
+            and len(view_az) == len(views) == len(view_el)
+        ):
+            # each scene vertex uses the views of the ring nearest the camera's elevation seen from it
+            rings = np.unique(np.asarray(view_el, np.float64))
+            rel = np.asarray(viewpoint_m, np.float64) - keypoints
+            cam_el = np.degrees(np.arctan2(rel[:, 2], np.linalg.norm(rel[:, :2], axis=1)))
+            ring_of_vertex = rings[np.argmin(np.abs(cam_el[:, None] - rings[None, :]), axis=1)]
+        else:
+            view_az = None
+        view_groups = []
+        for vi, ((_, ksl), corr) in enumerate(zip(views, matches, strict=True)):
+            if ring_of_vertex is not None and band is not None:
+                sel = np.flatnonzero(ring_of_vertex[corr.scene] == view_el[vi])
+                corr = Correspondences(corr.scene[sel], corr.model[sel], corr.distance[sel])
+                matches[vi] = corr
+            if band is None:
+                groups = group_geometrically_consistent(
+                    keypoints,
+                    model_kp_all[ksl],
+                    corr,
+                    config.consensus_m,
+                    config.min_group_size,
+                    config.max_groups,
+                )
+            else:
+                yaw_centre = None
+                half = float(np.pi)
+                if view_az is not None:
+                    # the camera sees the target from the view's azimuth: heading = direction to the
+                    # camera minus that azimuth (within half the view spacing and a margin)
+                    to_cam = np.asarray(viewpoint_m, np.float64)[:2] - keypoints[corr.scene, :2]
+                    yaw_centre = np.arctan2(to_cam[:, 1], to_cam[:, 0]) - np.radians(view_az[vi])
+                    half = np.pi / len(set(view_az)) + np.radians(config.view_yaw_margin_deg)
+                groups = group_upright_hough(
+                    keypoints,
+                    kp_height,
+                    model_kp_all[ksl],
+                    corr,
+                    cell_m=config.k_hough_cell * config.resolution_m,
+                    yaw_bin_rad=np.radians(config.hough_yaw_bin_deg),
+                    height_tol_m=config.k_height_tol * config.resolution_m,
+                    min_size=config.min_group_size,
+                    max_groups=config.max_groups,
+                    yaw_centre_rad=yaw_centre,
+                    yaw_half_width_rad=half,
+                )
+            view_groups.append(groups)
         t = clock.add("group", t)
-        hyps = []
-        for g in groups:
+        # the largest groups over all views go to RANSAC (stable: view order breaks ties)
+        ranked = sorted(
+            ((vi, g) for vi, groups in enumerate(view_groups) for g in groups), key=lambda vg: -len(vg[1])
+        )[: config.max_groups]
+        hyps: list[tuple[int, Any]] = []
+        for vi, g in ranked:
             h = ransac_per_group(
-                keypoints, model_kp, corr, g, config.ransac_iterations, config.ransac_inlier_m, rng
+                keypoints, model_kp_all[views[vi][1]], matches[vi], g, config.ransac_iterations,
+                config.ransac_inlier_m, rng,
             )
             if h is not None and h.inliers >= config.min_group_size:
-                hyps.append(h)
+                hyps.append((vi, h))
         t = clock.add("ransac", t)
-        model_pts = np.asarray(tpl.points_m, np.float64)
-        centre_m = model_pts.mean(axis=0)
-        model_tree = cKDTree(model_pts)
+        model_all = np.asarray(tpl.points_m, np.float64)
+        extent = model_extent_m(tpl)
+        view_cache: dict[int, tuple[np.ndarray, cKDTree]] = {}
         accepted = 0
-        for h in hyps:
+        for vi, h in hyps:
+            if vi not in view_cache:
+                pts_v = model_all[views[vi][0]]
+                view_cache[vi] = (pts_v, cKDTree(pts_v))
+            model_pts, model_tree = view_cache[vi]
             v = verify_with_icp(
                 model_pts,
                 surface,
@@ -246,7 +336,12 @@ def recognize(
                 scene_cloud=scene_cloud,
                 model_tree=model_tree,
             )
-            hyp_log.append((tpl.target, round(v.overlap, 3), v.overlap_vertices, round(v.clutter, 3)))
+            hyp_log.append(
+                (
+                    tpl.target, vi, round(v.overlap, 3), v.overlap_vertices, round(v.clutter, 3),
+                    *(round(float(x), 2) for x in v.T_scene_model[:3, 3]),
+                )
+            )
             if (
                 v.overlap >= config.min_overlap
                 and v.overlap_vertices >= config.min_overlap_vertices
@@ -261,15 +356,17 @@ def recognize(
                     overlap=float(v.overlap),
                     inliers=int(h.inliers),
                 )
+                centre_m = model_all.mean(axis=0)
                 centre_w = v.T_scene_model[:3, :3] @ centre_m + v.T_scene_model[:3, 3]
-                candidates.append((det, centre_w, model_extent_m(tpl)))
+                candidates.append((det, centre_w, extent))
         t = clock.add("icp", t)
         per_target.append(
             {
                 "target": tpl.target,
                 "descriptor": tpl.descriptor,
-                "correspondences": len(corr),
-                "groups": len(groups),
+                "views": len(views),
+                "correspondences": int(sum(len(c) for c in matches)),
+                "groups": int(sum(len(g) for g in view_groups)),
                 "hypotheses": len(hyps),
                 "accepted": accepted,
             }

@@ -83,6 +83,44 @@ def filter_smooth_surfaces(
     return variation >= min_angle_rad
 
 
+def height_above_ground(
+    points: np.ndarray, cell_m: float, window_m: float, percentile: float
+) -> np.ndarray:
+    """Height of each point above the local ground, metres (world frame, z up).
+
+    The ground under a point is estimated on a horizontal grid of ``cell_m`` cells: each cell's lowest
+    point (the ground if the cell shows any), then the ``percentile`` of those cell values within
+    ``window_m`` around the cell. A vehicle, a tree or a roof covers only part of a window wider than the
+    vehicle, so the low percentile returns the ground around it, while isolated points below the ground
+    (reconstruction outliers) do not drag it down as a plain minimum would.
+
+    Args:
+        points: (N, 3) float, metres, finite.
+        cell_m: grid cell edge, metres (> 0).
+        window_m: half-size of the percentile window, metres (>= cell_m).
+        percentile: percentile of the cell values taken as the ground, in [0, 100].
+
+    Returns:
+        (N,) float64 heights, metres (negative below the estimated ground).
+    """
+    from scipy import ndimage
+
+    pts = np.asarray(points, np.float64)
+    if len(pts) == 0:
+        return np.zeros(0)
+    ij = np.floor(pts[:, :2] / cell_m).astype(np.int64)
+    ij -= ij.min(axis=0)
+    shape = tuple(int(x) for x in ij.max(axis=0) + 1)
+    grid = np.full(shape, np.inf)
+    np.minimum.at(grid, (ij[:, 0], ij[:, 1]), pts[:, 2])
+    w = max(1, int(round(window_m / cell_m)))
+    size = 2 * w + 1
+    ground = ndimage.percentile_filter(grid, percentile, size=size, mode="constant", cval=np.inf)
+    fallback = ndimage.minimum_filter(grid, size=size, mode="constant", cval=np.inf)
+    ground = np.where(np.isfinite(ground), ground, fallback)
+    return pts[:, 2] - ground[ij[:, 0], ij[:, 1]]
+
+
 @dataclass(frozen=True)
 class Correspondences:
     """Scene-model keypoint correspondences.
@@ -99,6 +137,55 @@ class Correspondences:
 
     def __len__(self) -> int:
         return len(self.scene)
+
+
+def descriptor_sq_distances(scene_desc: np.ndarray, model_desc: np.ndarray) -> np.ndarray:
+    """Squared L2 distances between every scene and model descriptor, (S, M) float32.
+
+    One float32 matrix product (BLAS): |s|^2 + |m|^2 - 2 s.m, clipped at 0. Descriptors are up to 1980
+    long, where k-d trees are no faster than brute force; float32 keeps 6-7 significant digits, far more
+    than the kNNDR ratio needs. Rows with NaN give NaN distances.
+    """
+    s = np.ascontiguousarray(scene_desc, np.float32)
+    m = np.ascontiguousarray(model_desc, np.float32)
+    d2 = s @ m.T
+    d2 *= -2.0
+    d2 += np.einsum("ij,ij->i", s, s)[:, None]
+    d2 += np.einsum("ij,ij->i", m, m)[None, :]
+    np.maximum(d2, 0.0, out=d2)
+    return d2
+
+
+def knndr_from_distances(
+    d2: np.ndarray, k: int, ratio: float, max_correspondences: int | None = None
+) -> Correspondences:
+    """kNNDR on a precomputed (S, M) squared-distance matrix (see ``match_knndr``).
+
+    Rows or columns with non-finite distances (NaN descriptors) are ignored.
+    """
+    empty = Correspondences(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    if d2.ndim != 2 or d2.shape[0] == 0 or d2.shape[1] < 2:
+        return empty
+    row_ok = np.isfinite(d2).any(axis=1)
+    col_ok = np.isfinite(d2).any(axis=0)
+    s_ok, m_ok = np.flatnonzero(row_ok), np.flatnonzero(col_ok)
+    if len(s_ok) == 0 or len(m_ok) < 2:
+        return empty
+    if len(s_ok) < d2.shape[0] or len(m_ok) < d2.shape[1]:
+        d2 = d2[np.ix_(s_ok, m_ok)]
+    kk = min(k, d2.shape[1])
+    part = np.argpartition(d2, kk - 1, axis=1)[:, :kk]
+    pd = np.take_along_axis(d2, part, axis=1)
+    order = np.lexsort((part, pd), axis=1)
+    nn = np.take_along_axis(part, order, axis=1)
+    dist = np.sqrt(np.take_along_axis(pd, order, axis=1).astype(np.float64))
+    keep = dist[:, :-1] < ratio * dist[:, -1:]
+    rows, cols = np.nonzero(keep)
+    sc, mo, di = s_ok[rows], m_ok[nn[rows, cols]], dist[rows, cols]
+    o = np.lexsort((mo, sc, di))
+    if max_correspondences is not None:
+        o = o[:max_correspondences]
+    return Correspondences(sc[o].astype(np.int64), mo[o].astype(np.int64), di[o])
 
 
 def match_knndr(
@@ -125,32 +212,16 @@ def match_knndr(
     Returns:
         Correspondences sorted by distance (ties by scene then model index).
     """
-    s = np.asarray(scene_desc, np.float64)
-    m = np.asarray(model_desc, np.float64)
-    empty = Correspondences(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    s = np.asarray(scene_desc)
+    m = np.asarray(model_desc)
     if s.ndim != 2 or m.ndim != 2 or s.shape[1] != m.shape[1]:
         raise InputError(f"descriptor shapes {s.shape} and {m.shape} must be (S, L) and (M, L)")
     s_ok = np.flatnonzero(np.isfinite(s).all(axis=1))
     m_ok = np.flatnonzero(np.isfinite(m).all(axis=1))
     if len(s_ok) == 0 or len(m_ok) < 2:
-        return empty
-    s, m = s[s_ok], m[m_ok]
-    kk = min(k, len(m))
-    # Brute force: descriptors are up to 1980 long, where kd-trees are no faster.
-    d2 = (s * s).sum(1)[:, None] + (m * m).sum(1)[None, :] - 2.0 * (s @ m.T)
-    np.maximum(d2, 0.0, out=d2)
-    part = np.argpartition(d2, kk - 1, axis=1)[:, :kk]
-    pd = np.take_along_axis(d2, part, axis=1)
-    order = np.lexsort((part, pd), axis=1)
-    nn = np.take_along_axis(part, order, axis=1)
-    dist = np.sqrt(np.take_along_axis(pd, order, axis=1))
-    keep = dist[:, :-1] < ratio * dist[:, -1:]
-    rows, cols = np.nonzero(keep)
-    sc, mo, di = s_ok[rows], m_ok[nn[rows, cols]], dist[rows, cols]
-    o = np.lexsort((mo, sc, di))
-    if max_correspondences is not None:
-        o = o[:max_correspondences]
-    return Correspondences(sc[o].astype(np.int64), mo[o].astype(np.int64), di[o])
+        return Correspondences(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    c = knndr_from_distances(descriptor_sq_distances(s[s_ok], m[m_ok]), k, ratio, max_correspondences)
+    return Correspondences(s_ok[c.scene], m_ok[c.model], c.distance)
 
 
 @numba.njit(cache=True)
@@ -233,6 +304,103 @@ def group_geometrically_consistent(
     return groups if max_groups is None else groups[:max_groups]
 
 
+def group_upright_hough(
+    scene_keypoints: np.ndarray,
+    scene_heights: np.ndarray,
+    model_keypoints: np.ndarray,
+    corr: Correspondences,
+    *,
+    cell_m: float,
+    yaw_bin_rad: float,
+    height_tol_m: float,
+    min_size: int,
+    max_groups: int | None = None,
+    yaw_centre_rad: np.ndarray | None = None,
+    yaw_half_width_rad: float = float(np.pi),
+) -> list[np.ndarray]:
+    """Geometrically consistent groups for an upright target on the ground, by Hough voting.
+
+    A ground vehicle's pose has four degrees of freedom that matter (position and heading; its tilt
+    follows the gentle terrain). A correspondence (scene s, model m) is consistent with a pose only if
+    s stands as high above the ground as m above the model's base (``height_tol_m``); for each heading
+    bin theta it then fixes the position ``s_xy - R(theta) m_xy``. Every correspondence votes in a
+    (heading, x, y) accumulator; a peak holds the correspondences that agree on one pose, i.e. a group
+    whose members are pairwise consistent (the role of PCL's geometric-consistency or Hough 3D
+    grouping, with the upright prior making each vote two-dimensional instead of six).
+
+    Args:
+        scene_keypoints: (S, 3) metres, world frame (z up).
+        scene_heights: (S,) metres above the local ground (``height_above_ground``).
+        model_keypoints: (M, 3) metres, template frame (origin on the ground, z up).
+        corr: correspondences.
+        cell_m: position cell of the accumulator, metres.
+        yaw_bin_rad: heading bin, radians.
+        height_tol_m: largest difference between the scene height and the model height, metres.
+        min_size: smallest group kept.
+        max_groups: keep the largest this many groups.
+        yaw_centre_rad: optional (C,) expected heading per correspondence (e.g. from the template
+            view's azimuth and the camera's direction); votes only within ``yaw_half_width_rad`` of it.
+        yaw_half_width_rad: see above.
+
+    Returns:
+        list of (G_i,) int64 arrays of indices into ``corr``, largest first.
+    """
+    if len(corr) < min_size:
+        return []
+    s = np.asarray(scene_keypoints, np.float64)[corr.scene]
+    hs = np.asarray(scene_heights, np.float64)[corr.scene]
+    m = np.asarray(model_keypoints, np.float64)[corr.model]
+    ok = np.flatnonzero(np.abs(hs - m[:, 2]) <= height_tol_m)
+    if len(ok) < min_size:
+        return []
+    n_bins = max(1, int(round(2 * np.pi / yaw_bin_rad)))
+    centres = (np.arange(n_bins) + 0.5) * (2 * np.pi / n_bins)
+    if yaw_centre_rad is None:
+        ci = np.repeat(ok, n_bins)
+        bi = np.tile(np.arange(n_bins), len(ok))
+    else:
+        diff = np.angle(np.exp(1j * (centres[None, :] - np.asarray(yaw_centre_rad)[ok, None])))
+        rows, bi = np.nonzero(np.abs(diff) <= yaw_half_width_rad + 0.5 * (2 * np.pi / n_bins))
+        ci = ok[rows]
+    if len(ci) == 0:
+        return []
+    c, sn = np.cos(centres[bi]), np.sin(centres[bi])
+    tx = s[ci, 0] - (c * m[ci, 0] - sn * m[ci, 1])
+    ty = s[ci, 1] - (sn * m[ci, 0] + c * m[ci, 1])
+    gx = np.floor(tx / cell_m).astype(np.int64)
+    gy = np.floor(ty / cell_m).astype(np.int64)
+    gx -= gx.min()
+    gy -= gy.min()
+    ny = int(gy.max()) + 3
+    nx = int(gx.max()) + 3
+    key = (bi * nx + gx) * ny + gy
+    # each correspondence counts once per cell (it may vote twice there from neighbouring bins)
+    pair = np.unique(key * len(corr) + ci)
+    cell_keys, counts = np.unique(pair // len(corr), return_counts=True)
+    order = np.lexsort((cell_keys, -counts))
+    groups: list[np.ndarray] = []
+    used_cells: list[tuple[int, int, int]] = []
+    for o in order:
+        if counts[o] < min_size or (max_groups is not None and len(groups) >= max_groups):
+            break
+        k = int(cell_keys[o])
+        b, rest = divmod(k, nx * ny)
+        x, y = divmod(rest, ny)
+        if any(
+            min(abs(b - ub), n_bins - abs(b - ub)) <= 1 and abs(x - ux) <= 1 and abs(y - uy) <= 1
+            for ub, ux, uy in used_cells
+        ):
+            continue
+        used_cells.append((b, x, y))
+        db = np.abs(bi - b)
+        near = (np.minimum(db, n_bins - db) <= 1) & (np.abs(gx - x) <= 1) & (np.abs(gy - y) <= 1)
+        members = np.unique(ci[near])
+        if len(members) >= min_size:
+            groups.append(members.astype(np.int64))
+    groups.sort(key=lambda g: -len(g))
+    return groups
+
+
 def rigid_transform(model_xyz: np.ndarray, scene_xyz: np.ndarray) -> np.ndarray:
     """Least-squares rigid transform (Kabsch) mapping model points onto scene points; (4, 4) float64."""
     mc, sc = model_xyz.mean(0), scene_xyz.mean(0)
@@ -259,6 +427,24 @@ class Hypothesis:
     T_scene_model: np.ndarray
     inliers: int
     group_size: int
+
+
+@numba.njit(cache=True)
+def _ransac_counts(R, t, m, s, inlier2):  # pragma: no cover - compiled
+    """Inliers of each candidate transform (R[i], t[i]) over all correspondences (m -> s)."""
+    n_it, n = R.shape[0], m.shape[0]
+    counts = np.zeros(n_it, np.int64)
+    for i in range(n_it):
+        c = 0
+        for j in range(n):
+            d2 = 0.0
+            for a in range(3):
+                p = R[i, a, 0] * m[j, 0] + R[i, a, 1] * m[j, 1] + R[i, a, 2] * m[j, 2] + t[i, a]
+                d2 += (p - s[j, a]) ** 2
+            if d2 < inlier2:
+                c += 1
+        counts[i] = c
+    return counts
 
 
 def ransac_per_group(
@@ -297,13 +483,13 @@ def ransac_per_group(
     Vt_fix[:, 2, :] *= np.where(det < 0, -1.0, 1.0)[:, None]
     R = np.einsum("ikj,ilk->ijl", Vt_fix, U)  # V D U^T
     t = sc[:, 0, :] - np.einsum("ijk,ik->ij", R, mc[:, 0, :])
-    pred = np.einsum("ijk,nk->inj", R, m) + t[:, None, :]
-    inl = np.sum((pred - s[None]) ** 2, axis=2) < inlier_m**2
-    counts = inl.sum(1)
+    counts = _ransac_counts(
+        np.ascontiguousarray(R), np.ascontiguousarray(t), m, s, float(inlier_m) ** 2
+    )
     best = int(np.argmax(counts))  # first maximum: deterministic
     if counts[best] < 3:
         return None
-    mask = inl[best]
+    mask = np.sum(((m @ R[best].T + t[best]) - s) ** 2, axis=1) < inlier_m**2
     T = rigid_transform(m[mask], s[mask])
     final = np.sum(((m @ T[:3, :3].T + T[:3, 3]) - s) ** 2, axis=1) < inlier_m**2
     return Hypothesis(T_scene_model=T, inliers=int(max(final.sum(), counts[best])), group_size=n)

@@ -19,7 +19,7 @@ from atr.recognition import _backend
 from atr.recognition.config import DESCRIPTORS, RecognitionConfig
 from atr.recognition.steps import uniform_subsample
 
-TEMPLATE_VERSION = 1
+TEMPLATE_VERSION = 2
 """Bumped whenever the template recipe changes, so that caches keyed by parameters are invalidated."""
 
 
@@ -83,7 +83,37 @@ class Template:
             )
         if len(t.normals) != len(t.points_m):
             raise InputError(f"template has {len(t.points_m)} points but {len(t.normals)} normals")
+        vp, vk = t.params.get("view_points"), t.params.get("view_keypoints")
+        if vp is not None or vk is not None:
+            if (
+                vp is None
+                or vk is None
+                or len(vp) != len(vk)
+                or sum(int(x) for x in vp) != len(t.points_m)
+                or sum(int(x) for x in vk) != len(t.keypoints_m)
+            ):
+                raise InputError(
+                    f"template view counts {vp} / {vk} do not add up to {len(t.points_m)} points / "
+                    f"{len(t.keypoints_m)} keypoints"
+                )
         return t
+
+    def view_slices(self) -> list[tuple[slice, slice]]:
+        """(points slice, keypoints slice) of each view; one view spanning everything when not multi-view.
+
+        A multi-view template (``build_template`` with several HPR viewpoints) stacks its views:
+        ``params["view_points"]`` and ``params["view_keypoints"]`` hold the row counts of each view in
+        ``points_m``/``normals`` and in ``keypoints_m``/``descriptors``.
+        """
+        np_, nk = self.params.get("view_points"), self.params.get("view_keypoints")
+        if not np_ or not nk or len(np_) != len(nk):
+            return [(slice(0, len(self.points_m)), slice(0, len(self.keypoints_m)))]
+        p_off = np.concatenate([[0], np.cumsum(np.asarray(np_, np.int64))])
+        k_off = np.concatenate([[0], np.cumsum(np.asarray(nk, np.int64))])
+        return [
+            (slice(int(p_off[i]), int(p_off[i + 1])), slice(int(k_off[i]), int(k_off[i + 1])))
+            for i in range(len(np_))
+        ]
 
     @property
     def storage_bytes(self) -> int:
@@ -130,14 +160,15 @@ def sample_mesh_surface(
 
 
 def aerial_viewpoints(centre: np.ndarray, config: RecognitionConfig) -> np.ndarray:
-    """HPR viewpoints (V, 3), metres: ``template_distance_m`` from ``centre`` at the configured elevation
-    and azimuths (z up)."""
-    el = math.radians(config.template_elevation_deg)
+    """HPR viewpoints (V, 3), metres: ``template_distance_m`` from ``centre`` at every configured
+    elevation (outer loop) and azimuth (inner loop), z up."""
     out = []
-    for az_deg in config.template_azimuths_deg:
-        az = math.radians(az_deg)
-        d = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-        out.append(np.asarray(centre, np.float64) + config.template_distance_m * d)
+    for el_deg in config.template_elevations_deg:
+        el = math.radians(el_deg)
+        for az_deg in config.template_azimuths_deg:
+            az = math.radians(az_deg)
+            d = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+            out.append(np.asarray(centre, np.float64) + config.template_distance_m * d)
     return np.array(out)
 
 
@@ -227,6 +258,18 @@ def template_from_points(
     )
 
 
+def _view_points(
+    dense: np.ndarray, face_normals: np.ndarray, viewpoint: np.ndarray, config: RecognitionConfig
+) -> np.ndarray:
+    """Indices of the dense samples seen from one viewpoint: HPR, then only faces that face it."""
+    visible = hidden_point_removal(dense, viewpoint[None, :], config.hpr_radius_factor)
+    if len(visible) == 0:
+        return visible
+    # HPR keeps some samples of hidden faces at grazing angles: a visible surface faces the view.
+    facing = np.einsum("ij,ij->i", viewpoint[None, :] - dense[visible], face_normals[visible]) > 0
+    return visible[facing] if facing.sum() >= config.normal_k + 1 else visible
+
+
 def build_template(
     mesh_vertices: np.ndarray,
     mesh_triangles: np.ndarray,
@@ -234,7 +277,13 @@ def build_template(
     descriptor: str,
     config: RecognitionConfig,
 ) -> Template:
-    """Offline phase §II-A: CAD mesh -> simulated aerial view P_m -> subsampled, described template.
+    """Offline phase §II-A: CAD mesh -> simulated aerial views P_m -> subsampled, described template.
+
+    One HPR view per configured azimuth (``template_azimuths_deg``) and elevation (``template_elevations_deg``). Each
+    view is subsampled, given normals and described on its own visible surface, as the scene will be; the
+    views are stacked in one Template (``Template.view_slices``) and the matcher treats each view as a
+    template of its own (its own kNNDR, groups and overlap), so that a target seen from any azimuth of
+    the orbit meets the view that shows what the camera sees (docs/recognition.md).
 
     Args:
         mesh_vertices: (V, 3) target-frame vertices, metres, z up.
@@ -244,7 +293,7 @@ def build_template(
         config: recognition configuration (resolution, HPR views, sampling density).
 
     Returns:
-        The template; ``params`` records the views used.
+        The template; ``params`` records the views used and their row counts.
     """
     dense, face_normals = sample_mesh_surface(
         mesh_vertices, mesh_triangles, config.template_samples_per_m2, seed=0
@@ -252,28 +301,46 @@ def build_template(
     lo, hi = dense.min(0), dense.max(0)
     centre = 0.5 * (lo + hi)
     views = aerial_viewpoints(centre, config)
-    visible = hidden_point_removal(dense, views, config.hpr_radius_factor)
-    if len(visible) == 0:
-        raise InputError(f"no point of target {target!r} is visible from the template viewpoints")
-    # Drop the samples of hidden faces that HPR may keep at grazing angles: a visible surface faces a view.
-    to_view = views[None, :, :] - dense[visible][:, None, :]
-    facing = (np.einsum("ivj,ij->iv", to_view, face_normals[visible]) > 0).any(axis=1)
-    kept = visible[facing] if facing.sum() >= config.normal_k + 1 else visible
-    return template_from_points(
-        dense[kept],
-        target,
-        descriptor,
-        config,
-        orientation_normals=face_normals[kept],
-        params={
+    parts: list[Template] = []
+    # Vehicle frame (origin on the ground, z up): the ground-cut band is dropped, as the matcher drops
+    # the scene's ground (RecognitionConfig.ground_vehicles).
+    on_ground = config.ground_vehicles and abs(float(lo[2])) <= config.resolution_m
+    above = dense[:, 2] >= lo[2] + (config.ground_cut_m if on_ground else -1.0)
+    for vp in views:
+        kept = _view_points(dense, face_normals, vp, config)
+        kept = kept[above[kept]]
+        if len(kept) == 0:
+            raise InputError(f"no point of target {target!r} is visible from viewpoint {vp.tolist()}")
+        parts.append(
+            template_from_points(
+                dense[kept], target, descriptor, config, orientation_normals=face_normals[kept]
+            )
+        )
+    info = dict(parts[0].params)
+    info.update(
+        {
             "source": "mesh",
-            "template_elevation_deg": config.template_elevation_deg,
+            "template_elevations_deg": list(config.template_elevations_deg),
+            "view_azimuths_deg": [a for _ in config.template_elevations_deg for a in config.template_azimuths_deg],
+            "view_elevations_deg": [e for e in config.template_elevations_deg for _ in config.template_azimuths_deg],
             "template_azimuths_deg": list(config.template_azimuths_deg),
             "template_distance_m": config.template_distance_m,
             "dense_points": int(len(dense)),
-            "visible_points": int(len(kept)),
             "extent_m": [float(x) for x in (hi - lo)],
-        },
+            "on_ground": bool(on_ground),
+            "view_points": [int(len(p.points_m)) for p in parts],
+            "view_keypoints": [int(len(p.keypoints_m)) for p in parts],
+        }
+    )
+    return Template(
+        target=target,
+        descriptor=descriptor,
+        points_m=np.concatenate([p.points_m for p in parts]),
+        normals=np.concatenate([p.normals for p in parts]),
+        keypoints_m=np.concatenate([p.keypoints_m for p in parts]),
+        descriptors=np.concatenate([p.descriptors for p in parts]),
+        radius_m=parts[0].radius_m,
+        params=info,
     )
 
 

@@ -10,8 +10,12 @@ from atr.recognition import (
     Correspondences,
     RecognitionConfig,
     Template,
+    descriptor_sq_distances,
     filter_smooth_surfaces,
     group_geometrically_consistent,
+    group_upright_hough,
+    height_above_ground,
+    knndr_from_distances,
     match_knndr,
     ransac_per_group,
     rigid_transform,
@@ -157,7 +161,7 @@ def test_config_validates():
     with pytest.raises(ConfigError):
         RecognitionConfig(knndr_ratio=1.5)
     cfg = RecognitionConfig()
-    assert cfg.resolution_m == 0.3 and cfg.normal_k == 6 and cfg.knndr_k == 10
+    assert cfg.resolution_m == 0.3 and cfg.knndr_k == 10
     assert cfg.ransac_iterations == 1000
     assert math.isclose(cfg.support_radius_m, cfg.k_support_radius * 0.3)
 
@@ -196,5 +200,80 @@ def test_template_round_trips_through_dict_and_msgpack():
     )
     bad = t.to_dict()
     bad["descriptors"] = bad["descriptors"][:5]
+    with pytest.raises(InputError):
+        Template.from_dict(bad)
+
+
+def test_height_above_ground_on_terrain_with_vehicle_and_outliers():
+    rng = np.random.default_rng(11)
+    xy = rng.uniform(-20, 20, (6000, 2))
+    ground_z = 0.02 * xy[:, 0] + 5.0  # gentle slope, offset
+    pts = np.c_[xy, ground_z + rng.normal(0, 0.03, len(xy))]
+    # a 7 x 3.6 x 2.2 m box on the ground: its roof must stand 2.2 m up, not count as ground
+    bx = rng.uniform([-3.5, -1.8], [3.5, 1.8], (800, 2))
+    roof = np.c_[bx, 0.02 * bx[:, 0] + 5.0 + 2.2]
+    below = np.c_[rng.uniform(-20, 20, (20, 2)), np.full(20, 3.0)]  # reconstruction outliers
+    cloud = np.r_[pts, roof, below]
+    h = height_above_ground(cloud, 1.5, 4.5, 20.0)
+    # the lowest point of a cell lies ~1-2 sigma under the mean ground: well inside the 0.3 m ground cut
+    assert np.median(np.abs(h[: len(pts)])) < 0.15
+    np.testing.assert_allclose(np.median(h[len(pts) : len(pts) + len(roof)]), 2.2, atol=0.15)
+
+
+def test_knndr_from_distances_equals_match_knndr():
+    rng = np.random.default_rng(12)
+    s, m = rng.normal(size=(40, 33)), rng.normal(size=(70, 33))
+    a = match_knndr(s, m, 10, 0.9)
+    b = knndr_from_distances(descriptor_sq_distances(s, m), 10, 0.9)
+    assert np.array_equal(a.scene, b.scene) and np.array_equal(a.model, b.model)
+    d = np.linalg.norm(s[a.scene] - m[a.model], axis=1)
+    np.testing.assert_allclose(a.distance, d, rtol=1e-4)
+
+
+def test_upright_hough_groups_true_correspondences_and_uses_heights():
+    rng = np.random.default_rng(13)
+    model = np.c_[rng.uniform(-3.5, 3.5, (200, 2)), rng.uniform(0.3, 2.2, 200)]
+    yaw = 1.1
+    c, s_ = math.cos(yaw), math.sin(yaw)
+    R = np.array([[c, -s_, 0], [s_, c, 0], [0, 0, 1]])
+    t = np.array([40.0, -12.0, 3.0])  # ground at z = 3
+    scene = model @ R.T + t
+    heights = scene[:, 2] - 3.0
+    n_true, n_out = 30, 600
+    corr = Correspondences(
+        scene=np.r_[np.arange(n_true), rng.integers(0, 200, n_out)].astype(np.int64),
+        model=np.r_[np.arange(n_true), rng.integers(0, 200, n_out)].astype(np.int64),
+        distance=np.zeros(n_true + n_out),
+    )
+    groups = group_upright_hough(
+        scene, heights, model, corr, cell_m=0.9, yaw_bin_rad=math.radians(10), height_tol_m=0.45,
+        min_size=5, max_groups=5,
+    )
+    assert groups
+    assert set(range(n_true)) <= set(groups[0].tolist())
+    assert len(groups[0]) < 3 * n_true  # 600 random outliers: the peak is mostly true correspondences
+    # the same correspondences with the scene lifted 1 m off the ground are height-inconsistent
+    none = group_upright_hough(
+        scene, heights + 1.0, model, corr, cell_m=0.9, yaw_bin_rad=math.radians(10), height_tol_m=0.45,
+        min_size=5, max_groups=5,
+    )
+    assert all(len(set(range(n_true)) & set(g.tolist())) < 5 for g in none)
+
+
+def test_multi_view_template_slices_and_validation():
+    rng = np.random.default_rng(14)
+    t = Template(
+        target="t72", descriptor="fpfh",
+        points_m=rng.normal(size=(30, 3)).astype(np.float32),
+        normals=rng.normal(size=(30, 3)).astype(np.float32),
+        keypoints_m=rng.normal(size=(20, 3)).astype(np.float32),
+        descriptors=rng.normal(size=(20, 33)).astype(np.float32),
+        radius_m=3.0,
+        params={"resolution_m": 0.3, "view_points": [10, 20], "view_keypoints": [5, 15]},
+    )
+    back = Template.from_dict(t.to_dict())
+    assert back.view_slices() == [(slice(0, 10), slice(0, 5)), (slice(10, 30), slice(5, 20))]
+    bad = t.to_dict()
+    bad["params"] = {"view_points": [10, 21], "view_keypoints": [5, 15]}
     with pytest.raises(InputError):
         Template.from_dict(bad)
