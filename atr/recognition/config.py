@@ -39,6 +39,9 @@ class RecognitionConfig:
             paper's 2D threshold (§III-B).
         max_correspondences: keep at most this many best correspondences before grouping (bounds the
             quadratic grouping time on 260k-point LIDAR scenes).
+        knn_across_views: with a multi-view template, take each keypoint's k nearest over all views of its
+            elevation ring together instead of k per view (k-fold fewer correspondences; measured in
+            docs/recognition.md).
         k_consensus: geometric-consistency tolerance / resolution: two correspondences agree when their
             scene and model distances differ by less than this (PCL GeometricConsistencyGrouping gc_size).
             Two voxels' worth covers the subsampling jitter of both clouds.
@@ -107,6 +110,7 @@ class RecognitionConfig:
     smooth_angle_rad: float = math.radians(10.0)
     knndr_ratio: float = 1.0
     max_correspondences: int = 20000
+    knn_across_views: bool = False
     k_consensus: float = 2.0
     min_group_size: int = 5
     max_groups: int = 10
@@ -132,7 +136,7 @@ class RecognitionConfig:
     k_height_tol: float = 1.5
     view_yaw_margin_deg: float = 15.0
     template_samples_per_m2: float = 400.0
-    template_elevations_deg: tuple[float, ...] = (30.0,)
+    template_elevations_deg: tuple[float, ...] = (10.0, 35.0)
     template_azimuths_deg: tuple[float, ...] = tuple(30.0 * i for i in range(12))
     template_distance_m: float = 50.0
     hpr_radius_factor: float = 100.0
@@ -145,9 +149,9 @@ class RecognitionConfig:
             value = getattr(self, f.name)
             if f.name in ("descriptor", "template_azimuths_deg", "template_elevations_deg"):
                 continue
-            if f.name == "ground_vehicles":
+            if f.name in ("ground_vehicles", "knn_across_views"):
                 if not isinstance(value, bool):
-                    raise ConfigError(f"ground_vehicles = {value!r} must be true or false")
+                    raise ConfigError(f"{f.name} = {value!r} must be true or false")
                 continue
             if not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
                 raise ConfigError(f"{f.name} = {value!r} must be a finite number > 0")

@@ -237,38 +237,31 @@ def recognize(
                 tpl.descriptor, surface, normals, kp_idx, tpl.radius_m
             )
         t = clock.add("describe", t)
-        d2 = descriptor_sq_distances(scene_desc[key], tpl.descriptors)
         views = tpl.view_slices()
-        matches = [
-            knndr_from_distances(
-                d2[:, ksl], config.knndr_k, config.knndr_ratio, config.max_correspondences
-            )
-            for _, ksl in views
-        ]
-        t = clock.add("match", t)
-        model_kp_all = np.asarray(tpl.keypoints_m, np.float64)
         view_az = tpl.params.get("view_azimuths_deg")
         view_el = tpl.params.get("view_elevations_deg")
-        ring_of_vertex = None
-        if (
+        if not (
             viewpoint_m is not None
+            and band is not None
             and view_az is not None
             and view_el is not None
             and len(view_az) == len(views) == len(view_el)
         ):
-            # each scene vertex uses the views of the ring nearest the camera's elevation seen from it
+            view_az = None
+            view_el = [0.0] * len(views)
+            ring_of_vertex = np.zeros(len(keypoints))
+        else:
+            # each scene vertex is matched with the views of the ring nearest the camera's elevation
+            # seen from it (the camera position is known)
             rings = np.unique(np.asarray(view_el, np.float64))
             rel = np.asarray(viewpoint_m, np.float64) - keypoints
             cam_el = np.degrees(np.arctan2(rel[:, 2], np.linalg.norm(rel[:, :2], axis=1)))
             ring_of_vertex = rings[np.argmin(np.abs(cam_el[:, None] - rings[None, :]), axis=1)]
-        else:
-            view_az = None
+        matches = _match_views(scene_desc[key], tpl.descriptors, views, view_el, ring_of_vertex, config)
+        t = clock.add("match", t)
+        model_kp_all = np.asarray(tpl.keypoints_m, np.float64)
         view_groups = []
         for vi, ((_, ksl), corr) in enumerate(zip(views, matches, strict=True)):
-            if ring_of_vertex is not None and band is not None:
-                sel = np.flatnonzero(ring_of_vertex[corr.scene] == view_el[vi])
-                corr = Correspondences(corr.scene[sel], corr.model[sel], corr.distance[sel])
-                matches[vi] = corr
             if band is None:
                 groups = group_geometrically_consistent(
                     keypoints,
@@ -376,6 +369,51 @@ def recognize(
     detections = suppress_non_maxima(candidates, config.nms_m)
     stats["detections"] = len(detections)
     return RecognitionResult(detections, clock.result(), stats)
+
+
+def _match_views(
+    scene_desc: np.ndarray,
+    model_desc: np.ndarray,
+    views: list[tuple[slice, slice]],
+    view_el: Sequence[float],
+    ring_of_vertex: np.ndarray,
+    config: RecognitionConfig,
+) -> list[Correspondences]:
+    """kNNDR of each scene keypoint against the views of its elevation ring.
+
+    ``config.knn_across_views``: the k nearest are taken over all views of the ring together (one
+    neighbour list per keypoint, then split by view); otherwise each view has its own k nearest.
+    Returns one Correspondences per view, model indices local to the view.
+    """
+    out: list[Correspondences] = [
+        Correspondences(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)) for _ in views
+    ]
+    view_el_arr = np.asarray(view_el, np.float64)
+    for ring in np.unique(ring_of_vertex):
+        rows = np.flatnonzero(ring_of_vertex == ring)
+        in_ring = np.flatnonzero(view_el_arr == ring)
+        if len(rows) == 0 or len(in_ring) == 0:
+            continue
+        cols = np.concatenate([np.arange(views[v][1].start, views[v][1].stop) for v in in_ring])
+        owner = np.concatenate([np.full(views[v][1].stop - views[v][1].start, v) for v in in_ring])
+        d2 = descriptor_sq_distances(scene_desc[rows], model_desc[cols])
+        if config.knn_across_views:
+            c = knndr_from_distances(d2, config.knndr_k, config.knndr_ratio)
+            for v in in_ring:
+                sel = np.flatnonzero(owner[c.model] == v)
+                out[v] = Correspondences(
+                    rows[c.scene[sel]], cols[c.model[sel]] - views[v][1].start, c.distance[sel]
+                )
+        else:
+            start = 0
+            for v in in_ring:
+                n = views[v][1].stop - views[v][1].start
+                c = knndr_from_distances(
+                    d2[:, start : start + n], config.knndr_k, config.knndr_ratio, config.max_correspondences
+                )
+                out[v] = Correspondences(rows[c.scene], c.model, c.distance)
+                start += n
+    return out
 
 
 def suppress_non_maxima(
