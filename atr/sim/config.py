@@ -41,6 +41,8 @@ class SimConfig:
     height_px: int = 960  # image height, pixels
     # focal length, pixels: a 6.9 m T-72 hull spans 69 px at 200 m (>= 50 px)
     focal_px: float = 2000.0
+    # lens distortion, OpenCV order (k1, k2, p1, p2, k3); zeros: an ideal pinhole (the default)
+    dist_coeffs: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
     # --- platform ---------------------------------------------------------------------------------
     speed_mps: float = 15.0  # ground speed on the orbit, m/s (small UAV, 10-20 m/s)
     # frame interval x speed / range: ~4.3 deg of parallax per frame pair
@@ -102,6 +104,9 @@ class SimConfig:
                 raise ConfigError(f"{name} {getattr(self, name)} must be > 0")
         if self.haze_visibility_m is not None and self.haze_visibility_m <= 0:
             raise ConfigError(f"haze_visibility_m {self.haze_visibility_m} must be > 0 or None")
+        if len(self.dist_coeffs) not in (4, 5, 8) or not np.all(np.isfinite(self.dist_coeffs)):
+            raise ConfigError(f"dist_coeffs {self.dist_coeffs} must be 4, 5 or 8 finite numbers "
+                              "(OpenCV order k1, k2, p1, p2[, k3[, k4, k5, k6]])")
         T = np.asarray(self.T_imu_cam, dtype=np.float64)
         if T.shape != (4, 4) or not np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-9):
             raise ConfigError("T_imu_cam must be a 4x4 rigid transform")

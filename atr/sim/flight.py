@@ -58,6 +58,7 @@ class SensorFrame:
     v_world_imu_mps: np.ndarray  # (3,) true IMU velocity at stamp_ns
     lidar_points_m: np.ndarray | None  # (P, 3) float64 world frame, when lidar=True
     targets: list[TargetTruth] = field(default_factory=list)
+    dist_coeffs: np.ndarray = field(default_factory=lambda: np.zeros(5))  # OpenCV lens distortion
 
 
 @dataclass(frozen=True)
@@ -181,4 +182,5 @@ def simulate_flight(scenario: Scenario, *, seed: int = 0, frames: int | None = N
             v_world_imu_mps=st.v_world[0].copy(),
             lidar_points_m=cloud,
             targets=truth,
+            dist_coeffs=np.asarray(cfg.dist_coeffs, dtype=np.float64),
         )

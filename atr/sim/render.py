@@ -8,6 +8,7 @@ attenuated by haze with range, mapped to sRGB.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import open3d as o3d
 
@@ -44,9 +45,16 @@ class Renderer:
         self.K = self.cfg.K
         u, v = np.meshgrid(np.arange(self.cfg.width_px, dtype=np.float64),
                            np.arange(self.cfg.height_px, dtype=np.float64))
-        self._dirs_cam = np.column_stack([(u.ravel() - self.K[0, 2]) / self.K[0, 0],
-                                          (v.ravel() - self.K[1, 2]) / self.K[1, 1],
-                                          np.ones(u.size)])  # z = 1: t_hit is the z-depth
+        self.dist = np.asarray(self.cfg.dist_coeffs, dtype=np.float64)
+        if np.any(self.dist != 0):  # each pixel's ray through the distorted lens
+            pix = np.column_stack([u.ravel(), v.ravel()]).reshape(-1, 1, 2)
+            crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12)
+            xy = cv2.undistortPoints(pix, self.K, self.dist, None, None, None, crit).reshape(-1, 2)
+        else:
+            xy = np.column_stack([(u.ravel() - self.K[0, 2]) / self.K[0, 0],
+                                  (v.ravel() - self.K[1, 2]) / self.K[1, 1]])
+        # z = 1: t_hit is the z-depth
+        self._dirs_cam = np.column_stack([xy, np.ones(u.size)])
         self._samples = target_samples(world.target_local, world.T_world_target,
                                        self.cfg.target_samples)
 
@@ -106,7 +114,7 @@ class Renderer:
         seen = self_vis & (t_full >= dist - tol)
         pc = (pts - o) @ T[:3, :3]
         in_front = pc[:, 2] > 0.1
-        uv = pc[:, :2] / np.where(in_front, pc[:, 2], 1.0)[:, None] * self.K[0, 0] + self.K[:2, 2]
+        uv = project(pts, self.K, T, self.dist)
         inside = (in_front & (uv[:, 0] >= 0) & (uv[:, 0] <= self.cfg.width_px - 1)
                   & (uv[:, 1] >= 0) & (uv[:, 1] <= self.cfg.height_px - 1))
         return float((seen & inside).sum() / n_self)
@@ -184,9 +192,22 @@ def to_srgb8(img_linear: np.ndarray) -> np.ndarray:
     return srgb8(a.reshape(-1, 3)).reshape(a.shape)
 
 
-def project(points_world: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray) -> np.ndarray:
-    """Pinhole projection of (N, 3) world points to (N, 2) pixels (NaN behind the camera)."""
+def project(points_world: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray,
+            dist_coeffs: np.ndarray | None = None) -> np.ndarray:
+    """Projection of (N, 3) world points to (N, 2) pixels (NaN behind the camera).
+
+    Args:
+        points_world: (N, 3) metres; K: (3, 3) intrinsics; T_world_cam: (4, 4) camera pose.
+        dist_coeffs: OpenCV distortion (k1, k2, p1, p2[, k3...]); None or zeros: pinhole.
+    """
     T = np.asarray(T_world_cam, dtype=np.float64)
     pc = (np.asarray(points_world, dtype=np.float64) - T[:3, 3]) @ T[:3, :3]
     z = np.where(pc[:, 2] > 1e-9, pc[:, 2], np.nan)
+    if dist_coeffs is not None and np.any(np.asarray(dist_coeffs) != 0):
+        pts = np.ascontiguousarray(pc / z[:, None])
+        uv, _ = cv2.projectPoints(np.nan_to_num(pts), np.zeros(3), np.zeros(3), K,
+                                  np.asarray(dist_coeffs, dtype=np.float64))
+        uv = uv.reshape(-1, 2)
+        uv[~np.isfinite(z)] = np.nan
+        return uv
     return np.column_stack([K[0, 0] * pc[:, 0] / z + K[0, 2], K[1, 1] * pc[:, 1] / z + K[1, 2]])

@@ -47,3 +47,27 @@ def test_same_world_renders_identically(small_cfg):
     a, _ = Renderer(world, small_cfg).render(T)
     b, _ = Renderer(world, small_cfg).render(T)
     assert a.tobytes() == b.tobytes()
+
+
+def test_distorted_lens_projection_matches_render(small_cfg):
+    """With lens distortion, a ground point seen through a pixel projects back to that pixel with
+    OpenCV's distortion model, and the rendered depth there is the point's depth."""
+    import cv2
+    from dataclasses import replace
+
+    cfg = replace(small_cfg, dist_coeffs=(-0.12, 0.03, 0.001, -0.0005, 0.0))
+    world = toy_world([], cfg)
+    ren = Renderer(world, cfg)
+    T = look_at([-30.0, -25.0, 28.0], [8.0, 6.0, 0.0])
+    _, depth = ren.render(T)
+    K, dist = cfg.K, np.array(cfg.dist_coeffs)
+    uv = np.array([[5, 7], [300, 12], [160, 120], [20, 230], [310, 235], [100, 60]], float)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12)
+    xy = cv2.undistortPoints(uv.reshape(-1, 1, 2), K, dist, None, None, None, crit).reshape(-1, 2)
+    rays_w = np.column_stack([xy, np.ones(len(xy))]) @ T[:3, :3].T
+    s = -T[2, 3] / rays_w[:, 2]
+    P = T[:3, 3] + rays_w * s[:, None]
+    np.testing.assert_allclose(project(P, K, T, dist), uv, atol=1e-4)
+    np.testing.assert_allclose(depth[uv[:, 1].astype(int), uv[:, 0].astype(int)], s, rtol=1e-4)
+    # the corners really moved: distortion is not a no-op
+    assert np.abs(project(P, K, T) - uv).max() > 2.0
