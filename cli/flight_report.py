@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 
-from atr.config import SimConfig
 from atr.evaluation.metrics import Counts, SceneScore, count, score_scene
 
 TARGET = "t72"
@@ -15,9 +14,9 @@ TARGET = "t72"
 
 def score(truth: dict | None, detections: dict, target: str = TARGET) -> SceneScore:
     """Judge one scene from its Truth and Detections messages."""
-    present = SimConfig().present_min_visible_fraction
+    # The truth lists only the targets present in the scene (sensor_source applies the visibility rule).
     true_positions = [np.asarray(t["T_world_target"])[:3, 3] for t in (truth or {}).get("targets", [])
-                      if t["name"] == target and t["visible_fraction"] >= present]
+                      if t["name"] == target]
     hypotheses = sorted((d for d in detections["detections"] if d["target"] == target),
                         key=lambda d: -d["score"])
     return score_scene(true_positions, [np.asarray(d["T_world_target"])[:3, 3] for d in hypotheses])

@@ -37,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
 
     def messages():  # noqa: ANN202
         for index, frame in enumerate(frames):
-            yield from frame_messages(frame, args.uav, args.scenario, args.run, args.seed, index == 0)
+            yield from frame_messages(frame, args.uav, args.scenario, args.run, args.seed, index == 0,
+                                      config.sim.present_min_visible_fraction)
 
     count = write_messages(args.out, messages())
     print(f"wrote {count} messages to {args.out}")

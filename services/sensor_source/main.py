@@ -37,9 +37,13 @@ if TYPE_CHECKING:  # the simulator (Open3D) loads only when a flight is flown, n
 log = logging.getLogger("atr")
 
 
-def frame_messages(frame: SensorFrame, uav: str, scenario: int, run: int, seed: int,
-                   first: bool) -> Iterator[tuple[str, dict[str, Any]]]:
-    """The (key, message) pairs of one simulated frame, in publication order (image last)."""
+def frame_messages(frame: SensorFrame, uav: str, scenario: int, run: int, seed: int, first: bool,
+                   present_min_visible_fraction: float) -> Iterator[tuple[str, dict[str, Any]]]:
+    """The (key, message) pairs of one simulated frame, in publication order (image last).
+
+    The truth lists the targets in the scene: those at least `present_min_visible_fraction` visible
+    (ARCHITECTURE.md §4: an empty list when no target is in the scene).
+    """
     imu = {
         "stamp_ns": frame.stamp_ns, "seq": frame.seq, "frame_seq": frame.seq,
         "t_ns": frame.imu_t_ns.astype(np.int64), "gyro_radps": frame.gyro_radps,
@@ -59,12 +63,13 @@ def frame_messages(frame: SensorFrame, uav: str, scenario: int, run: int, seed: 
         "T_world_cam": frame.T_world_cam, "scenario": scenario, "run": run, "seed": seed,
         "targets": [
             {"name": t.name, "T_world_target": t.T_world_target, "visible_fraction": float(t.visible_fraction)}
-            for t in frame.targets
+            for t in frame.targets if t.visible_fraction >= present_min_visible_fraction
         ],
     }
     yield keys.image(uav), {
         "stamp_ns": frame.stamp_ns, "seq": frame.seq, "frame_seq": frame.seq, "encoding": "rgb8",
-        "data": frame.image, "K": frame.K, "distortion": np.zeros(0),
+        "data": frame.image, "K": frame.K,
+        "distortion": np.asarray(frame.dist_coeffs, np.float64),
     }
 
 
@@ -143,7 +148,8 @@ def main(argv: list[str] | None = None) -> int:
                 break
             if args.pace == "realtime" and last_stamp is not None:
                 time.sleep(max(0.0, (frame.stamp_ns - last_stamp) * 1e-9))
-            for key, message in frame_messages(frame, args.uav, args.scenario, args.run, args.seed, index == 0):
+            for key, message in frame_messages(frame, args.uav, args.scenario, args.run, args.seed, index == 0,
+                                               config.sim.present_min_visible_fraction):
                 node.publish(key, message)
             last_stamp = frame.stamp_ns
             if args.pace == "lock-step" and not watch.wait(frame.stamp_ns, args.answer_timeout):
