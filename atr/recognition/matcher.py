@@ -222,6 +222,8 @@ def recognize(
         return empty(f"only {len(kp_idx)} scene vertices survive the smooth-surface filter")
     keypoints = surface[kp_idx]
     kp_height = None if band is None else height[kp_idx]
+    ground_xy = None if band is None else cKDTree(surface[:, :2])
+    ground_z = None if band is None else surface[:, 2] - height
 
     scene_tree = cKDTree(surface)
     scene_cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(surface))
@@ -335,8 +337,17 @@ def recognize(
                     *(round(float(x), 2) for x in v.T_scene_model[:3, 3]),
                 )
             )
+            on_ground = True
+            if ground_xy is not None:
+                # a ground vehicle's origin (on the ground under it) must lie on the scene's ground
+                _, nb = ground_xy.query(v.T_scene_model[:2, 3], k=min(10, len(ground_z)))
+                on_ground = bool(
+                    abs(v.T_scene_model[2, 3] - float(np.median(ground_z[np.atleast_1d(nb)])))
+                    <= config.k_height_tol * config.resolution_m
+                )
             if (
-                v.overlap >= config.min_overlap
+                on_ground
+                and v.overlap >= config.min_overlap
                 and v.overlap_vertices >= config.min_overlap_vertices
                 and v.clutter <= config.max_clutter
             ):

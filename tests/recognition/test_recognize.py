@@ -70,6 +70,10 @@ def templates(vehicles):
     return cfg, [build_template(m.vertices, m.triangles, k, DESC, cfg) for k, m in vehicles.items()]
 
 
+AZ, EL, RANGE = np.radians(20.0), np.radians(30.0), 50.0
+VIEWPOINT = RANGE * np.array([np.cos(EL) * np.cos(AZ), np.cos(EL) * np.sin(AZ), np.sin(EL)])
+
+
 def _scene(vehicles, name, seed=0):
     T = syn.pose(0.0, -2.0, 0.7)
     veh = [((vehicles[name].vertices, vehicles[name].triangles), T)] if name else []
@@ -80,7 +84,7 @@ def _scene(vehicles, name, seed=0):
 def test_t72_recognised_within_2m(vehicles, templates):
     cfg, tpls = templates
     scene, T = _scene(vehicles, "t72")
-    res = recognize(scene, tpls, cfg, seed=0)
+    res = recognize(scene, tpls, cfg, seed=0, viewpoint_m=VIEWPOINT)
     assert res.detections, res.stats
     best = res.detections[0]
     assert best.target == "t72"
@@ -90,22 +94,22 @@ def test_t72_recognised_within_2m(vehicles, templates):
 def test_scene_without_target_yields_no_t72(vehicles, templates):
     cfg, tpls = templates
     scene, _ = _scene(vehicles, None)
-    res = recognize(scene, tpls[:1], cfg, seed=0)
+    res = recognize(scene, tpls[:1], cfg, seed=0, viewpoint_m=VIEWPOINT)
     assert res.detections == []
 
 
 def test_confuser_not_reported_as_t72(vehicles, templates):
     cfg, tpls = templates
     scene, _ = _scene(vehicles, "truck")
-    res = recognize(scene, tpls, cfg, seed=0)
+    res = recognize(scene, tpls, cfg, seed=0, viewpoint_m=VIEWPOINT)
     assert all(d.target != "t72" for d in res.detections)
 
 
 def test_same_seed_same_detections(vehicles, templates):
     cfg, tpls = templates
     scene, _ = _scene(vehicles, "t72")
-    a = recognize(scene, tpls, cfg, seed=3)
-    b = recognize(scene, tpls, cfg, seed=3)
+    a = recognize(scene, tpls, cfg, seed=3, viewpoint_m=VIEWPOINT)
+    b = recognize(scene, tpls, cfg, seed=3, viewpoint_m=VIEWPOINT)
     assert [d.to_dict() for d in a.detections] == [d.to_dict() for d in b.detections]
     assert {k: v for k, v in a.stats.items()} == {k: v for k, v in b.stats.items()}
 
