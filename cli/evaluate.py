@@ -232,7 +232,8 @@ def _work_via_services(flight: Any, arms: list[Any], plan_: Plan, workdir: Path)
 
     def messages():  # noqa: ANN202
         for index, frame in enumerate(frames):
-            yield from frame_messages(frame, "uav1", flight.scenario, flight.run, flight.seed, index == 0)
+            yield from frame_messages(frame, "uav1", flight.scenario, flight.run, flight.seed, index == 0,
+                                      plan_.config.sim.present_min_visible_fraction)
 
     write_messages(recording, messages())
     out: dict[Any, list[Any]] = {}
