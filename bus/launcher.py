@@ -169,6 +169,9 @@ class Supervisor:
     def _env(self, spec: ProcessSpec) -> dict[str, str]:
         env = dict(os.environ)
         env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+        # Several services share few cores: one BLAS thread each, numba on OpenMP (Debian's TBB is too old).
+        env.setdefault("OPENBLAS_NUM_THREADS", "1")
+        env.setdefault("NUMBA_THREADING_LAYER", "omp")
         config = spec.zenoh or self.layout.zenoh
         if config:
             env["ATR_ZENOH_CONFIG"] = str(REPO / config) if not Path(config).is_absolute() else config
