@@ -1,4 +1,5 @@
-"""Choose the 2D baseline's acceptance threshold (min MSAC inliers) on tuning flights, never the reported ones.
+"""Choose the 2D baseline's min MSAC inliers on tuning flights, never the reported ones.
+
 
 Runs the four Table IV pairs with the threshold at its floor (3) on flights of a tuning world seed (default 1;
 the report uses seed 0), then prints the F1 (§III-C) each threshold would give. Prints figures; asserts nothing.
@@ -24,7 +25,9 @@ from atr.evaluation.scoring import score_record  # noqa: E402
 
 def main() -> None:
     """Parse, run, print."""
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--scenario", type=int, action="append")
     parser.add_argument("--run", type=int, action="append")
@@ -43,13 +46,18 @@ def main() -> None:
         out = run_flight(Flight(s, r, args.frames, args.seed), arms, config, {}, templates, floor)
         for a in arms:
             records[a] += out[a]
-    print(f"seed {args.seed}: {len(records[arms[0]])} scenes per pair; F1 per min_inliers threshold")
+    print(
+        f"seed {args.seed}: {len(records[arms[0]])} scenes per pair; F1 per min_inliers threshold"
+    )
     thresholds = [3, 4, 5, 6, 8, 10, 12, 15, 20, 30]
     print("pair  " + " ".join(f"{t:>6}" for t in thresholds))
     for a in arms:
         row = []
         for t in thresholds:
-            kept = [replace(rec, detections=[d for d in rec.detections if d["score"] >= t]) for rec in records[a]]
+            kept = [
+                replace(rec, detections=[d for d in rec.detections if d["score"] >= t])
+                for rec in records[a]
+            ]
             row.append(count([score_record(k, "t72") for k in kept]).f1)
         print(f"{a.pipeline}  " + " ".join(f"{f:6.3f}" for f in row))
 

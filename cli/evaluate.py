@@ -1,4 +1,4 @@
-"""Run the paper's experiments (§III) and score them with its F1 (§III-C): `atr eval`.
+r"""Run the paper's experiments (§III) and score them with its F1 (§III-C): `atr eval`.
 
 Any selection of scenarios x runs x pipelines x descriptors x noise settings, each flight simulated once and
 processed by every selected pipeline. In-process by default (the services' functions, same seeds: identical
@@ -15,6 +15,7 @@ Examples:
     atr eval --pipeline gftt-sfm --pipeline lidar --pipeline 2d-1 --descriptor shot --descriptor fpfh \\
         --noise none --noise shot --noise gaussian:10 --noise gaussian:30 --jobs 2     # the full evaluation
     atr eval --scenario 1 --run 3 --frames 4 --via-services --set sim.width_px=640 --set sim.height_px=480
+
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import time
 from collections.abc import Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, replace
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -38,24 +39,58 @@ NOISES = ("none", "shot", "gaussian:10", "gaussian:30")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr eval`."""
-    parser.add_argument("--scenario", type=int, action="append", help="Table II scenario (repeatable; default all)")
-    parser.add_argument("--run", type=int, action="append", help="run within each scenario (repeatable; default all)")
-    parser.add_argument("--frames", type=int, help="only the first N frames of each run (N - 1 scenes)")
-    parser.add_argument("--pipeline", action="append",
-                        help="gftt-sfm, surf-sfm, lidar, 2d-1..2d-4 (repeatable; default gftt-sfm)")
-    parser.add_argument("--descriptor", action="append",
-                        help="3D descriptor of the 3D pipelines (repeatable; default the config's)")
-    parser.add_argument("--noise", action="append", help="none, shot, gaussian:10, gaussian:30 (repeatable)")
-    parser.add_argument("--seed", type=int, default=0, help="world seed (0 is reported; others tune)")
-    parser.add_argument("--target-mesh", help="mesh file of the target (its template and its world)")
-    parser.add_argument("--clutter-mesh", action="append", default=[], help="extra confuser mesh (repeatable)")
-    parser.add_argument("--json", type=Path, help="also write the results table here (the contract)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE")
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes (flights run in parallel)")
+    parser.add_argument(
+        "--scenario", type=int, action="append", help="Table II scenario (repeatable; default all)"
+    )
+    parser.add_argument(
+        "--run",
+        type=int,
+        action="append",
+        help="run within each scenario (repeatable; default all)",
+    )
+    parser.add_argument(
+        "--frames", type=int, help="only the first N frames of each run (N - 1 scenes)"
+    )
+    parser.add_argument(
+        "--pipeline",
+        action="append",
+        help="gftt-sfm, surf-sfm, lidar, 2d-1..2d-4 (repeatable; default gftt-sfm)",
+    )
+    parser.add_argument(
+        "--descriptor",
+        action="append",
+        help="3D descriptor of the 3D pipelines (repeatable; default the config's)",
+    )
+    parser.add_argument(
+        "--noise", action="append", help="none, shot, gaussian:10, gaussian:30 (repeatable)"
+    )
+    parser.add_argument(
+        "--seed", type=int, default=0, help="world seed (0 is reported; others tune)"
+    )
+    parser.add_argument(
+        "--target-mesh", help="mesh file of the target (its template and its world)"
+    )
+    parser.add_argument(
+        "--clutter-mesh", action="append", default=[], help="extra confuser mesh (repeatable)"
+    )
+    parser.add_argument(
+        "--json", type=Path, help="also write the results table here (the contract)"
+    )
+    parser.add_argument(
+        "--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE"
+    )
+    parser.add_argument(
+        "--jobs", type=int, default=1, help="worker processes (flights run in parallel)"
+    )
     parser.add_argument("--results", type=Path, default=REPO / "results", help="results folder")
-    parser.add_argument("--via-services", action="store_true",
-                        help="run the 3D pipelines through the real service graph from recordings")
-    parser.add_argument("--force", action="store_true", help="recompute runs even when a current result exists")
+    parser.add_argument(
+        "--via-services",
+        action="store_true",
+        help="run the 3D pipelines through the real service graph from recordings",
+    )
+    parser.add_argument(
+        "--force", action="store_true", help="recompute runs even when a current result exists"
+    )
 
 
 @dataclass
@@ -92,8 +127,17 @@ def _flights(args: argparse.Namespace) -> list[Any]:
         chosen = [r for r in (args.run or runs) if r in runs]
         for r in chosen:
             for noise in noises:
-                flights.append(Flight(s, r, args.frames, args.seed, noise, args.target_mesh,
-                                      tuple(args.clutter_mesh)))
+                flights.append(
+                    Flight(
+                        s,
+                        r,
+                        args.frames,
+                        args.seed,
+                        noise,
+                        args.target_mesh,
+                        tuple(args.clutter_mesh),
+                    )
+                )
     if not flights:
         raise ConfigError(f"no run of scenarios {scenarios} matches --run {args.run}")
     if args.frames is not None and args.frames < 2:
@@ -124,10 +168,19 @@ def plan(args: argparse.Namespace) -> Plan:
 
     overrides = list(args.overrides)
     if args.target_mesh:
-        overrides.append(f"pipeline.target_meshes=[{json.dumps(str(Path(args.target_mesh).resolve()))}]")
+        overrides.append(
+            f"pipeline.target_meshes=[{json.dumps(str(Path(args.target_mesh).resolve()))}]"
+        )
     config = load_config(None, overrides)
-    return Plan(config, overrides, _flights(args), _arms(args, config), code_version(), args.results,
-                Baseline2dConfig())
+    return Plan(
+        config,
+        overrides,
+        _flights(args),
+        _arms(args, config),
+        code_version(),
+        args.results,
+        Baseline2dConfig(),
+    )
 
 
 def _effective(plan_: Plan, arm: Any) -> dict[str, Any]:
@@ -143,15 +196,19 @@ def _effective(plan_: Plan, arm: Any) -> dict[str, Any]:
 def _key(plan_: Plan, flight: Any, arm: Any, via_services: bool) -> str:
     from atr.evaluation.io import run_key  # noqa: PLC0415
 
-    return run_key(flight, arm, _effective(plan_, arm) | {"via_services": via_services and not arm.is_2d},
-                   plan_.version)
+    return run_key(
+        flight,
+        arm,
+        _effective(plan_, arm) | {"via_services": via_services and not arm.is_2d},
+        plan_.version,
+    )
 
 
 # ------------------------------------------------------------------------------------------- templates
 
 
 def _templates_3d(plan_: Plan) -> None:
-    """Templates of every target per descriptor, exactly as template_store serves them to the matcher."""
+    """Build the templates of every target per descriptor, exactly as template_store serves them."""
     from atr.evaluation.runner import arm_config  # noqa: PLC0415
     from services.atr_matcher.main import _template  # noqa: PLC0415
     from services.template_store.main import TemplateStore  # noqa: PLC0415
@@ -180,20 +237,34 @@ def _templates_2d(plan_: Plan) -> None:
     if not pairs:
         return
     f0 = plan_.flights[0]
-    key = run_key(replace(f0, scenario=plan_.b2d.template_scenario, run=plan_.b2d.template_run, frames=None,
-                          noise="none"), Arm("2d-1", "gftt+freak"),
-                  {"sim": jsonable(plan_.config.sim), "b2d": jsonable(plan_.b2d)}, plan_.version)
+    key = run_key(
+        replace(
+            f0,
+            scenario=plan_.b2d.template_scenario,
+            run=plan_.b2d.template_run,
+            frames=None,
+            noise="none",
+        ),
+        Arm("2d-1", "gftt+freak"),
+        {"sim": jsonable(plan_.config.sim), "b2d": jsonable(plan_.b2d)},
+        plan_.version,
+    )
     path = plan_.results / "cache" / f"views2d-{key}.pickle"
     if path.exists():
         views = pickle.loads(path.read_bytes())
     else:
-        _log(f"cropping the 12 2D templates from scenario {plan_.b2d.template_scenario} run "
-             f"{plan_.b2d.template_run} (seed {f0.seed})")
+        _log(
+            f"cropping the 12 2D templates from scenario {plan_.b2d.template_scenario} run "
+            f"{plan_.b2d.template_run} (seed {f0.seed})"
+        )
         views = crop_template_views(
-            f0.seed, plan_.config.sim, plan_.b2d,
+            f0.seed,
+            plan_.config.sim,
+            plan_.b2d,
             target_mesh=load_mesh(f0.target_mesh) if f0.target_mesh else None,
             target_name=f0.target if f0.target_mesh else None,
-            clutter_meshes=tuple(load_mesh(p) for p in f0.clutter_meshes))
+            clutter_meshes=tuple(load_mesh(p) for p in f0.clutter_meshes),
+        )
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(pickle.dumps(views))
     for pair in pairs:
@@ -208,21 +279,23 @@ def _log(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
-def _work_in_process(flight: Any, arms: list[Any], config: Any, templates_3d: dict, templates_2d: dict,
-                     b2d: Any) -> dict[Any, list[Any]]:
+def _work_in_process(
+    flight: Any, arms: list[Any], config: Any, templates_3d: dict, templates_2d: dict, b2d: Any
+) -> dict[Any, list[Any]]:
     """One flight through every arm, in a worker process."""
     from atr.evaluation.runner import run_flight  # noqa: PLC0415
 
     return run_flight(flight, arms, config, templates_3d, templates_2d, b2d)
 
 
-def _work_via_services(flight: Any, arms: list[Any], plan_: Plan, workdir: Path) -> dict[Any, list[Any]]:
-    """One flight: `atr simulate` to a recording, then `atr run` per 3D arm; 2D arms in-process on it."""
+def _work_via_services(
+    flight: Any, arms: list[Any], plan_: Plan, workdir: Path
+) -> dict[Any, list[Any]]:
+    """Run one flight: `atr simulate`, then `atr run` per 3D arm; 2D arms in-process on it."""
+    from atr.evaluation.runner import arm_overrides, flight_frames, run_flight  # noqa: PLC0415
     from bus.pipeline import run_recording  # noqa: PLC0415
     from bus.recording import write_messages  # noqa: PLC0415
     from services.sensor_source.main import frame_messages  # noqa: PLC0415
-
-    from atr.evaluation.runner import arm_overrides, flight_frames, run_flight  # noqa: PLC0415
 
     workdir.mkdir(parents=True, exist_ok=True)
     stem = f"s{flight.scenario}r{flight.run}-{flight.noise.replace(':', '')}-seed{flight.seed}"
@@ -232,8 +305,15 @@ def _work_via_services(flight: Any, arms: list[Any], plan_: Plan, workdir: Path)
 
     def messages():  # noqa: ANN202
         for index, frame in enumerate(frames):
-            yield from frame_messages(frame, "uav1", flight.scenario, flight.run, flight.seed, index == 0,
-                                      plan_.config.sim.present_min_visible_fraction)
+            yield from frame_messages(
+                frame,
+                "uav1",
+                flight.scenario,
+                flight.run,
+                flight.seed,
+                index == 0,
+                plan_.config.sim.present_min_visible_fraction,
+            )
 
     write_messages(recording, messages())
     out: dict[Any, list[Any]] = {}
@@ -241,22 +321,33 @@ def _work_via_services(flight: Any, arms: list[Any], plan_: Plan, workdir: Path)
         if arm.is_2d:
             continue
         result_path = workdir / f"{stem}-{arm.pipeline}-{arm.descriptor}.mcap"
-        result = run_recording(recording, result_path, overrides=plan_.overrides + arm_overrides(arm))
+        result = run_recording(
+            recording, result_path, overrides=plan_.overrides + arm_overrides(arm)
+        )
         if result.failures:
             from atr.errors import AtrError  # noqa: PLC0415
 
-            raise AtrError(f"service graph failed on {stem} ({arm.pipeline}/{arm.descriptor}): "
-                           f"{result.failures}; logs in {result.log_dir}")
+            raise AtrError(
+                f"service graph failed on {stem} ({arm.pipeline}/{arm.descriptor}): "
+                f"{result.failures}; logs in {result.log_dir}"
+            )
         out[arm] = recorded_scenes(result_path, plan_.config.sfm.pair_gap_frames)
     two_d = [a for a in arms if a.is_2d]
     if two_d:
-        out |= run_flight(flight, two_d, plan_.config, plan_.templates_3d, plan_.templates_2d, plan_.b2d,
-                          frames=recorded_frames(recording))
+        out |= run_flight(
+            flight,
+            two_d,
+            plan_.config,
+            plan_.templates_3d,
+            plan_.templates_2d,
+            plan_.b2d,
+            frames=recorded_frames(recording),
+        )
     return out
 
 
 def recorded_scenes(path: Path, gap: int, uav: str = "uav1") -> list[Any]:
-    """SceneRecords of a recorded run: truth and Detections paired by stamp_ns, times from Timing messages."""
+    """Read a recorded run's SceneRecords: truth and Detections by stamp_ns, Timing times."""
     from mcap.reader import make_reader  # noqa: PLC0415
 
     from atr.evaluation.runner import SceneRecord, detection_dict  # noqa: PLC0415
@@ -291,14 +382,31 @@ def recorded_scenes(path: Path, gap: int, uav: str = "uav1") -> list[Any]:
         if t["frame_seq"] < gap:
             continue
         d = detections.get(stamp)
-        found = [detection_dict(x["target"], x["T_world_target"], x["score"]) for x in (d or {}).get(
-            "detections", [])]
-        truth_list = [{"name": x["name"], "position_m": [float(v) for v in x["T_world_target"][:3, 3]],
-                       "visible_fraction": float(x["visible_fraction"])} for x in t["targets"]]
+        found = [
+            detection_dict(x["target"], x["T_world_target"], x["score"])
+            for x in (d or {}).get("detections", [])
+        ]
+        truth_list = [
+            {
+                "name": x["name"],
+                "position_m": [float(v) for v in x["T_world_target"][:3, 3]],
+                "visible_fraction": float(x["visible_fraction"]),
+            }
+            for x in t["targets"]
+        ]
         st = stages.get(stamp, {})
-        records.append(SceneRecord(int(t["frame_seq"]), stamp, truth_list, found,
-                                   sum(st.values()) if st else float("nan"), st, clouds.get(stamp, 0),
-                                   None if d is not None else "no answer"))
+        records.append(
+            SceneRecord(
+                int(t["frame_seq"]),
+                stamp,
+                truth_list,
+                found,
+                sum(st.values()) if st else float("nan"),
+                st,
+                clouds.get(stamp, 0),
+                None if d is not None else "no answer",
+            )
+        )
     return records
 
 
@@ -314,25 +422,46 @@ def recorded_frames(path: Path, uav: str = "uav1") -> list[Any]:
     images: dict[int, dict] = {}
     with open(path, "rb") as stream:
         for _, channel, message in make_reader(stream).iter_messages(
-                topics=[keys.truth(uav), keys.image(uav)], log_time_order=False):
+            topics=[keys.truth(uav), keys.image(uav)], log_time_order=False
+        ):
             data = codec.unpack(message.data)
             (truth if channel.topic == keys.truth(uav) else images)[data["stamp_ns"]] = data
     empty = np.zeros((0, 3))
-    return [SensorFrame(seq=int(images[s]["frame_seq"]), stamp_ns=s, image=np.asarray(images[s]["data"]),
-                        K=np.asarray(images[s]["K"]), T_world_cam=np.asarray(truth[s]["T_world_cam"]),
-                        imu_t_ns=np.zeros(0, np.int64), gyro_radps=empty, accel_mps2=empty,
-                        T_world_imu=np.eye(4), v_world_imu_mps=np.zeros(3), lidar_points_m=None,
-                        targets=[TargetTruth(t["name"], np.asarray(t["T_world_target"]), t["visible_fraction"])
-                                 for t in truth[s]["targets"]])
-            for s in sorted(images) if s in truth]
+    return [
+        SensorFrame(
+            seq=int(images[s]["frame_seq"]),
+            stamp_ns=s,
+            image=np.asarray(images[s]["data"]),
+            K=np.asarray(images[s]["K"]),
+            T_world_cam=np.asarray(truth[s]["T_world_cam"]),
+            imu_t_ns=np.zeros(0, np.int64),
+            gyro_radps=empty,
+            accel_mps2=empty,
+            T_world_imu=np.eye(4),
+            v_world_imu_mps=np.zeros(3),
+            lidar_points_m=None,
+            targets=[
+                TargetTruth(t["name"], np.asarray(t["T_world_target"]), t["visible_fraction"])
+                for t in truth[s]["targets"]
+            ],
+        )
+        for s in sorted(images)
+        if s in truth
+    ]
 
 
-def execute(plan_: Plan, *, jobs: int = 1, via_services: bool = False, force: bool = False,
-            ) -> dict[tuple[Any, Any], list[Any]]:
+def execute(
+    plan_: Plan,
+    *,
+    jobs: int = 1,
+    via_services: bool = False,
+    force: bool = False,
+) -> dict[tuple[Any, Any], list[Any]]:
     """Compute (or load) every (flight, arm) result of a plan.
 
     Returns:
         (flight, arm) -> SceneRecords.
+
     """
     from atr.evaluation.io import load_run, save_run  # noqa: PLC0415
 
@@ -349,8 +478,10 @@ def execute(plan_: Plan, *, jobs: int = 1, via_services: bool = False, force: bo
             else:
                 results[(flight, arm)] = records
     total = len(plan_.flights) * len(plan_.arms)
-    _log(f"atr eval: {total} runs ({len(plan_.flights)} flights x {len(plan_.arms)} pipelines/descriptors), "
-         f"{total - sum(map(len, todo.values()))} current results reused, code {plan_.version}")
+    _log(
+        f"atr eval: {total} runs ({len(plan_.flights)} flights x {len(plan_.arms)} pipelines/descriptors), "
+        f"{total - sum(map(len, todo.values()))} current results reused, code {plan_.version}"
+    )
     if not todo:
         return results
     _templates_3d(plan_)
@@ -361,16 +492,27 @@ def execute(plan_: Plan, *, jobs: int = 1, via_services: bool = False, force: bo
     def finish(flight: Any, out: dict[Any, list[Any]]) -> None:
         nonlocal done
         for arm, records in out.items():
-            save_run(runs_dir / f"{keys[(flight, arm)]}.json", flight, arm, keys[(flight, arm)], records,
-                     {"storage_kb": plan_.storage_kb.get(("2d" if arm.is_2d else "3d",
-                                                          arm.pipeline if arm.is_2d else arm.descriptor))})
+            save_run(
+                runs_dir / f"{keys[(flight, arm)]}.json",
+                flight,
+                arm,
+                keys[(flight, arm)],
+                records,
+                {
+                    "storage_kb": plan_.storage_kb.get(
+                        ("2d" if arm.is_2d else "3d", arm.pipeline if arm.is_2d else arm.descriptor)
+                    )
+                },
+            )
             results[(flight, arm)] = records
         done += 1
         elapsed = time.monotonic() - started
         eta = elapsed / done * (len(todo) - done)
         bar = "#" * (20 * done // len(todo))
-        _log(f"[{bar:<20}] {done}/{len(todo)} flights  scenario {flight.scenario} run {flight.run} "
-             f"noise {flight.noise}: {len(out)} runs, {elapsed:.0f} s elapsed, ~{eta:.0f} s left")
+        _log(
+            f"[{bar:<20}] {done}/{len(todo)} flights  scenario {flight.scenario} run {flight.run} "
+            f"noise {flight.noise}: {len(out)} runs, {elapsed:.0f} s elapsed, ~{eta:.0f} s left"
+        )
 
     if via_services:
         workdir = plan_.results / "services"
@@ -379,14 +521,30 @@ def execute(plan_: Plan, *, jobs: int = 1, via_services: bool = False, force: bo
         return results
     if jobs <= 1:
         for flight, arms in todo.items():
-            finish(flight, _work_in_process(flight, arms, plan_.config, plan_.templates_3d, plan_.templates_2d,
-                                            plan_.b2d))
+            finish(
+                flight,
+                _work_in_process(
+                    flight, arms, plan_.config, plan_.templates_3d, plan_.templates_2d, plan_.b2d
+                ),
+            )
         return results
     # spawn, not fork: the parent already runs OpenMP/numba threads (template building), and a fork of such a
     # process is unsafe (GNU OpenMP terminates it).
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-        pending = {pool.submit(_work_in_process, flight, arms, plan_.config, plan_.templates_3d,
-                               plan_.templates_2d, plan_.b2d): flight for flight, arms in todo.items()}
+    with ProcessPoolExecutor(
+        max_workers=jobs, mp_context=multiprocessing.get_context("spawn")
+    ) as pool:
+        pending = {
+            pool.submit(
+                _work_in_process,
+                flight,
+                arms,
+                plan_.config,
+                plan_.templates_3d,
+                plan_.templates_2d,
+                plan_.b2d,
+            ): flight
+            for flight, arms in todo.items()
+        }
         while pending:
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
@@ -410,30 +568,61 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
         for arm in plan_.arms:
             records = results[(flight, arm)]
             s = summarise(records, flight.target, plan_.config.sim.present_min_visible_fraction)
-            row = {"scenario": flight.scenario, "run": flight.run, "pipeline": arm.pipeline,
-                   "descriptor": arm.descriptor, "noise": flight.noise, "tp": s.counts.tp, "fp": s.counts.fp,
-                   "fn": s.counts.fn, "f1": s.counts.f1, "t_error_median_m": s.t_error_median_m,
-                   "time_per_scene_ms": s.time_per_scene_ms, "scenes": s.scenes}
+            row = {
+                "scenario": flight.scenario,
+                "run": flight.run,
+                "pipeline": arm.pipeline,
+                "descriptor": arm.descriptor,
+                "noise": flight.noise,
+                "tp": s.counts.tp,
+                "fp": s.counts.fp,
+                "fn": s.counts.fn,
+                "f1": s.counts.f1,
+                "t_error_median_m": s.t_error_median_m,
+                "time_per_scene_ms": s.time_per_scene_ms,
+                "scenes": s.scenes,
+            }
             sc = preset(flight.scenario, flight.run)
-            storage = plan_.storage_kb.get(("2d" if arm.is_2d else "3d",
-                                            arm.pipeline if arm.is_2d else arm.descriptor))
+            storage = plan_.storage_kb.get(
+                ("2d" if arm.is_2d else "3d", arm.pipeline if arm.is_2d else arm.descriptor)
+            )
             contract.append(jsonable(row))
-            details.append(jsonable(row | {
-                "seed": flight.seed, "frames": flight.frames, "target": flight.target, "tn": s.counts.tn,
-                "range_m": sc.range_m, "obliquity_deg": sc.obliquity_deg, "scenes_with_target": s.scenes_with_target,
-                "errors": s.errors, "t_errors_m": list(s.t_errors_m), "stages_ms": s.stages_ms,
-                "cloud_points_median": float(np.median([r.cloud_points for r in records])) if records else None,
-                "template_storage_kb": storage}))
+            details.append(
+                jsonable(
+                    row
+                    | {
+                        "seed": flight.seed,
+                        "frames": flight.frames,
+                        "target": flight.target,
+                        "tn": s.counts.tn,
+                        "range_m": sc.range_m,
+                        "obliquity_deg": sc.obliquity_deg,
+                        "scenes_with_target": s.scenes_with_target,
+                        "errors": s.errors,
+                        "t_errors_m": list(s.t_errors_m),
+                        "stages_ms": s.stages_ms,
+                        "cloud_points_median": float(np.median([r.cloud_points for r in records]))
+                        if records
+                        else None,
+                        "template_storage_kb": storage,
+                    }
+                )
+            )
     return contract, details
 
 
-def write_outputs(plan_: Plan, contract: list[dict], details: list[dict], json_path: Path | None,
-                  argv: Sequence[str]) -> Path:
-    """Write results/<timestamp>/ (results.json, details.json, config.json), point `latest` at it."""
+def write_outputs(
+    plan_: Plan,
+    contract: list[dict],
+    details: list[dict],
+    json_path: Path | None,
+    argv: Sequence[str],
+) -> Path:
+    """Write results/<timestamp>/ (results, details, config), point `latest` at it."""
     from atr.config import to_dict  # noqa: PLC0415
     from atr.evaluation.io import jsonable  # noqa: PLC0415
 
-    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     out = plan_.results / stamp
     n = 1
     while out.exists():
@@ -442,11 +631,22 @@ def write_outputs(plan_: Plan, contract: list[dict], details: list[dict], json_p
     out.mkdir(parents=True)
     (out / "results.json").write_text(json.dumps({"results": contract}, indent=1))
     (out / "details.json").write_text(json.dumps({"results": details}, indent=1))
-    (out / "config.json").write_text(json.dumps(jsonable({
-        "command": ["atr", "eval", *argv], "code_version": plan_.version, "overrides": plan_.overrides,
-        "atr": to_dict(plan_.config), "baseline2d": plan_.b2d,
-        "flights": plan_.flights, "arms": plan_.arms,
-    }), indent=1))
+    (out / "config.json").write_text(
+        json.dumps(
+            jsonable(
+                {
+                    "command": ["atr", "eval", *argv],
+                    "code_version": plan_.version,
+                    "overrides": plan_.overrides,
+                    "atr": to_dict(plan_.config),
+                    "baseline2d": plan_.b2d,
+                    "flights": plan_.flights,
+                    "arms": plan_.arms,
+                }
+            ),
+            indent=1,
+        )
+    )
     latest = plan_.results / "latest"
     tmp = plan_.results / f".latest.{os.getpid()}"
     tmp.symlink_to(out.name)
@@ -462,15 +662,21 @@ def run(args: argparse.Namespace) -> int:
     plan_ = plan(args)
     results = execute(plan_, jobs=args.jobs, via_services=args.via_services, force=args.force)
     contract, details = rows(plan_, results)
-    out = write_outputs(plan_, contract, details, args.json, sys.argv[2:] if len(sys.argv) > 2 else [])
-    header = f"{'scen':>4} {'run':>3} {'pipeline':<9} {'descriptor':<11} {'noise':<11} " \
-             f"{'TP':>4} {'FP':>4} {'FN':>4} {'F1':>6} {'Terr m':>7} {'ms/scene':>9}"
+    out = write_outputs(
+        plan_, contract, details, args.json, sys.argv[2:] if len(sys.argv) > 2 else []
+    )
+    header = (
+        f"{'scen':>4} {'run':>3} {'pipeline':<9} {'descriptor':<11} {'noise':<11} "
+        f"{'TP':>4} {'FP':>4} {'FN':>4} {'F1':>6} {'Terr m':>7} {'ms/scene':>9}"
+    )
     print(header)
     for r in contract:
         f1 = "-" if r["f1"] is None else f"{r['f1']:.3f}"
         te = "-" if r["t_error_median_m"] is None else f"{r['t_error_median_m']:.2f}"
         ms = "-" if r["time_per_scene_ms"] is None else f"{r['time_per_scene_ms']:.0f}"
-        print(f"{r['scenario']:>4} {r['run']:>3} {r['pipeline']:<9} {r['descriptor']:<11} {r['noise']:<11} "
-              f"{r['tp']:>4} {r['fp']:>4} {r['fn']:>4} {f1:>6} {te:>7} {ms:>9}")
+        print(
+            f"{r['scenario']:>4} {r['run']:>3} {r['pipeline']:<9} {r['descriptor']:<11} {r['noise']:<11} "
+            f"{r['tp']:>4} {r['fp']:>4} {r['fn']:>4} {f1:>6} {te:>7} {ms:>9}"
+        )
     print(f"results in {out}")
     return 0

@@ -9,6 +9,7 @@ The result files it was made from are copied to <out>/data/ so the report and it
 Examples:
     atr report                                    # from results/latest into docs/evaluation
     atr report --results results/20260101T120000Z --out docs/evaluation
+
 """
 
 from __future__ import annotations
@@ -23,16 +24,29 @@ from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 PIPELINE_ORDER = ("gftt-sfm", "surf-sfm", "lidar", "2d-1", "2d-2", "2d-3", "2d-4")
-NAMES = {"gftt-sfm": "SfM GFTT", "surf-sfm": "SfM SURF", "lidar": "LIDAR", "2d-1": "2D #1 GFTT+FREAK",
-         "2d-2": "2D #2 SURF", "2d-3": "2D #3 FAST+BRISK", "2d-4": "2D #4 FAST+FREAK"}
+NAMES = {
+    "gftt-sfm": "SfM GFTT",
+    "surf-sfm": "SfM SURF",
+    "lidar": "LIDAR",
+    "2d-1": "2D #1 GFTT+FREAK",
+    "2d-2": "2D #2 SURF",
+    "2d-3": "2D #3 FAST+BRISK",
+    "2d-4": "2D #4 FAST+FREAK",
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr report`."""
-    parser.add_argument("--results", type=Path, action="append",
-                        help="an `atr eval` output folder (holds details.json); repeatable, the rows are merged "
-                             "(default results/latest)")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "evaluation", help="report folder")
+    parser.add_argument(
+        "--results",
+        type=Path,
+        action="append",
+        help="an `atr eval` output folder (holds details.json); repeatable, the rows are merged "
+        "(default results/latest)",
+    )
+    parser.add_argument(
+        "--out", type=Path, default=REPO / "docs" / "evaluation", help="report folder"
+    )
 
 
 # ------------------------------------------------------------------------------------------- formatting
@@ -75,21 +89,36 @@ class Figures:
         except ImportError:
             self.plt = None
 
-    def bars(self, name: str, title: str, panels: Mapping[str, Mapping[str, float]], ylabel: str = "F1",
-             ylim: tuple[float, float] | None = (0.0, 1.05)) -> str:
-        """Grouped bars: one panel per key of `panels`, one bar per arm label. Returns a Markdown image link."""
+    def bars(
+        self,
+        name: str,
+        title: str,
+        panels: Mapping[str, Mapping[str, float]],
+        ylabel: str = "F1",
+        ylim: tuple[float, float] | None = (0.0, 1.05),
+    ) -> str:
+        """Draw grouped bars, a panel per key and a bar per arm label; return the Markdown link."""
         if self.plt is None or not panels:
             return ""
         plt = self.plt
         labels = sorted({a for p in panels.values() for a in p}, key=_arm_sort)
-        fig, axes = plt.subplots(1, len(panels), figsize=(max(4.0, 0.45 * len(labels) + 1.5) * len(panels), 3.8),
-                                 squeeze=False)
+        fig, axes = plt.subplots(
+            1,
+            len(panels),
+            figsize=(max(4.0, 0.45 * len(labels) + 1.5) * len(panels), 3.8),
+            squeeze=False,
+        )
         colours = {p: plt.cm.tab10(i) for i, p in enumerate(PIPELINE_ORDER)}
         for ax, (panel, values) in zip(axes[0], panels.items(), strict=True):
             heights = [values.get(a, float("nan")) for a in labels]
-            ax.bar(range(len(labels)), [0 if math.isnan(h) else h for h in heights],
-                   color=[colours.get(a.split("/")[0], "grey") for a in labels])
-            ax.set_xticks(range(len(labels)), [a.replace("/", "\n") for a in labels], fontsize=7, rotation=60)
+            ax.bar(
+                range(len(labels)),
+                [0 if math.isnan(h) else h for h in heights],
+                color=[colours.get(a.split("/")[0], "grey") for a in labels],
+            )
+            ax.set_xticks(
+                range(len(labels)), [a.replace("/", "\n") for a in labels], fontsize=7, rotation=60
+            )
             ax.set_title(panel, fontsize=10)
             ax.set_ylabel(ylabel)
             if ylim:
@@ -110,7 +139,12 @@ class Figures:
         labels = sorted(data, key=_arm_sort)
         fig, ax = plt.subplots(figsize=(max(4.0, 0.6 * len(labels) + 1.5), 3.8))
         ax.boxplot([data[k] for k in labels])
-        ax.set_xticks(range(1, len(labels) + 1), [a.replace("/", "\n") for a in labels], fontsize=7, rotation=60)
+        ax.set_xticks(
+            range(1, len(labels) + 1),
+            [a.replace("/", "\n") for a in labels],
+            fontsize=7,
+            rotation=60,
+        )
         ax.set_ylabel(ylabel)
         ax.set_title(title, fontsize=11)
         ax.grid(axis="y", alpha=0.3)
@@ -133,7 +167,9 @@ class Figures:
             h = [stages[a].get(stage, 0.0) for a in labels]
             ax.bar(range(len(labels)), h, bottom=bottom, label=stage, color=cmap(i % 20))
             bottom = [b + x for b, x in zip(bottom, h, strict=True)]
-        ax.set_xticks(range(len(labels)), [a.replace("/", "\n") for a in labels], fontsize=7, rotation=60)
+        ax.set_xticks(
+            range(len(labels)), [a.replace("/", "\n") for a in labels], fontsize=7, rotation=60
+        )
         ax.set_ylabel("ms per scene (mean of run medians)")
         ax.set_title(title, fontsize=11)
         ax.legend(fontsize=6, ncol=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))
@@ -159,18 +195,39 @@ def _f1_by(rows: Sequence[Mapping[str, Any]], key: Any) -> dict[Any, dict[str, d
 def _f1_table(groups: Mapping[Any, Mapping[str, Mapping[str, Any]]], name: str) -> str:
     arms = sorted({a for g in groups.values() for a in g}, key=_arm_sort)
     header = ["pipeline / descriptor", *[f"{name} {k}" for k in groups]]
-    body = [[a, *[(f"{_pct(groups[k][a]['f1'])} ({groups[k][a]['tp']}/{groups[k][a]['fp']}/{groups[k][a]['fn']})"
-                   if a in groups[k] else "–") for k in groups]] for a in arms]
-    return _table(header, body) + "\n\nCells: F1 (TP/FP/FN), counts pooled over the runs before F1 (eq. 5)."
+    body = [
+        [
+            a,
+            *[
+                (
+                    f"{_pct(groups[k][a]['f1'])} ({groups[k][a]['tp']}/{groups[k][a]['fp']}/{groups[k][a]['fn']})"
+                    if a in groups[k]
+                    else "–"
+                )
+                for k in groups
+            ],
+        ]
+        for a in arms
+    ]
+    return (
+        _table(header, body)
+        + "\n\nCells: F1 (TP/FP/FN), counts pooled over the runs before F1 (eq. 5)."
+    )
 
 
 def _best(group: Mapping[str, Mapping[str, Any]], pipeline_prefix: str) -> tuple[str, float] | None:
-    cands = [(a, v["f1"]) for a, v in group.items() if a.startswith(pipeline_prefix) and not math.isnan(v["f1"])]
+    cands = [
+        (a, v["f1"])
+        for a, v in group.items()
+        if a.startswith(pipeline_prefix) and not math.isnan(v["f1"])
+    ]
     return max(cands, key=lambda x: x[1]) if cands else None
 
 
-def build_report(details: Sequence[Mapping[str, Any]], configs: Sequence[Mapping[str, Any]], out: Path) -> str:
-    """The report's Markdown (figures written into `out` as a side effect); `configs` of every merged result."""
+def build_report(
+    details: Sequence[Mapping[str, Any]], configs: Sequence[Mapping[str, Any]], out: Path
+) -> str:
+    """Build the report's Markdown (figures written into `out`); `configs` of every result."""
     from atr.evaluation.aggregate import (  # noqa: PLC0415
         DESCRIPTOR_LENGTH,
         OBLIQUITY_CLASS,
@@ -193,94 +250,224 @@ def build_report(details: Sequence[Mapping[str, Any]], configs: Sequence[Mapping
         "Generated by `atr report` from the `atr eval` result in `data/` (results.json is the contract table, "
         "details.json adds per-run details, config.json the effective configuration and the command). "
         "Numbers in *italics* are the paper's (Kechagias-Stamatis & Aouf, §III-D, Table V). How the experiments "
-        "map onto the paper, the seeds, and the one command of the full evaluation: [protocol.md](protocol.md).\n")
+        "map onto the paper, the seeds, and the one command of the full evaluation: [protocol.md](protocol.md).\n"
+    )
     config = configs[0]
-    parts.append(_table(["", ""], [
-        *[["command", "`" + " ".join(c.get("command", [])) + "`"] for c in configs],
-        ["code version", ", ".join(f"`{c.get('code_version', '?')}`" for c in configs)
-         + " (hash of the `atr` sources when each result was computed)"],
-        ["world seed(s) reported", ", ".join(map(str, seeds))],
-        ["scenes per pipeline (no noise)", str(scenes)],
-        ["frames per run", str(sorted({r.get('frames') for r in details}, key=str))],
-        ["camera", f"{config['atr']['sim']['width_px']}x{config['atr']['sim']['height_px']} px, "
-                   f"f = {config['atr']['sim']['focal_px']} px"],
-        ["targets in the template store", ", ".join(config["atr"]["pipeline"]["targets"])],
-    ]))
+    parts.append(
+        _table(
+            ["", ""],
+            [
+                *[["command", "`" + " ".join(c.get("command", [])) + "`"] for c in configs],
+                [
+                    "code version",
+                    ", ".join(f"`{c.get('code_version', '?')}`" for c in configs)
+                    + " (hash of the `atr` sources when each result was computed)",
+                ],
+                ["world seed(s) reported", ", ".join(map(str, seeds))],
+                ["scenes per pipeline (no noise)", str(scenes)],
+                ["frames per run", str(sorted({r.get("frames") for r in details}, key=str))],
+                [
+                    "camera",
+                    f"{config['atr']['sim']['width_px']}x{config['atr']['sim']['height_px']} px, "
+                    f"f = {config['atr']['sim']['focal_px']} px",
+                ],
+                ["targets in the template store", ", ".join(config["atr"]["pipeline"]["targets"])],
+            ],
+        )
+    )
     if figs.plt is None:
         parts.append("\n**matplotlib is not installed: figures were not drawn** (tables only).\n")
 
     # Fig. 4: range
     by_range = _f1_by(clean, lambda r: f"{int(r['range_m'])} m (scenario {r['scenario']})")
-    parts += ["", "## F1 per UAV–target range (Fig. 4)", "", _f1_table(by_range, ""), "",
-              figs.bars("fig4_range", "F1 per range (Fig. 4)",
-                        {k: {a: v["f1"] for a, v in g.items()} for k, g in by_range.items()})]
+    parts += [
+        "",
+        "## F1 per UAV–target range (Fig. 4)",
+        "",
+        _f1_table(by_range, ""),
+        "",
+        figs.bars(
+            "fig4_range",
+            "F1 per range (Fig. 4)",
+            {k: {a: v["f1"] for a, v in g.items()} for k, g in by_range.items()},
+        ),
+    ]
     # Fig. 5: obliquity
     by_obl = _f1_by(clean, lambda r: f"{int(r['obliquity_deg'])} deg")
-    parts += ["", "## F1 per obliquity, all ranges (Fig. 5)", "", _f1_table(by_obl, ""), "",
-              figs.bars("fig5_obliquity", "F1 per obliquity (Fig. 5)",
-                        {k: {a: v["f1"] for a, v in g.items()} for k, g in by_obl.items()})]
+    parts += [
+        "",
+        "## F1 per obliquity, all ranges (Fig. 5)",
+        "",
+        _f1_table(by_obl, ""),
+        "",
+        figs.bars(
+            "fig5_obliquity",
+            "F1 per obliquity (Fig. 5)",
+            {k: {a: v["f1"] for a, v in g.items()} for k, g in by_obl.items()},
+        ),
+    ]
     by_class = _f1_by(clean, lambda r: OBLIQUITY_CLASS.get(float(r["obliquity_deg"]), "other"))
     comp_rows = []
     for cls in ("low", "medium", "high"):
         g = by_class.get(cls, {})
-        for fam, prefix in (("gftt-sfm", "gftt-sfm/"), ("surf-sfm", "surf-sfm/"), ("lidar", "lidar/"),
-                            ("2d", "2d-")):
+        for fam, prefix in (
+            ("gftt-sfm", "gftt-sfm/"),
+            ("surf-sfm", "surf-sfm/"),
+            ("lidar", "lidar/"),
+            ("2d", "2d-"),
+        ):
             paper, note = PAPER_OBLIQUITY_F1[cls][fam]
             best = _best(g, prefix)
-            comp_rows.append([cls, NAMES.get(fam, "2D (best pair)"), f"*{_pct(paper)}*" + (f" *({note})*" if note else ""),
-                              f"{_pct(best[1])} ({best[0]})" if best else "not run"])
-    parts += ["", "Best F1 per method at low (0° and 15°), medium (30°) and high (45°) obliquity, beside §III-D-2:",
-              "", _table(["obliquity", "method", "paper", "ours (best descriptor)"], comp_rows)]
+            comp_rows.append(
+                [
+                    cls,
+                    NAMES.get(fam, "2D (best pair)"),
+                    f"*{_pct(paper)}*" + (f" *({note})*" if note else ""),
+                    f"{_pct(best[1])} ({best[0]})" if best else "not run",
+                ]
+            )
+    parts += [
+        "",
+        "Best F1 per method at low (0° and 15°), medium (30°) and high (45°) obliquity, beside §III-D-2:",
+        "",
+        _table(["obliquity", "method", "paper", "ours (best descriptor)"], comp_rows),
+    ]
     # Fig. 6: overall
     overall = pool(clean, arm_label)
-    parts += ["", "## Overall F1 (Fig. 6)", "",
-              _table(["pipeline / descriptor", "F1", "TP", "FP", "FN", "TN", "scenes"],
-                     [[a, _pct(v["f1"]), str(v["tp"]), str(v["fp"]), str(v["fn"]), str(v["tn"]), str(v["scenes"])]
-                      for a, v in sorted(overall.items(), key=lambda x: _arm_sort(x[0]))]), "",
-              figs.bars("fig6_overall", "Overall F1 (Fig. 6)", {"all scenes": {a: v["f1"] for a, v in overall.items()}})]
+    parts += [
+        "",
+        "## Overall F1 (Fig. 6)",
+        "",
+        _table(
+            ["pipeline / descriptor", "F1", "TP", "FP", "FN", "TN", "scenes"],
+            [
+                [
+                    a,
+                    _pct(v["f1"]),
+                    str(v["tp"]),
+                    str(v["fp"]),
+                    str(v["fn"]),
+                    str(v["tn"]),
+                    str(v["scenes"]),
+                ]
+                for a, v in sorted(overall.items(), key=lambda x: _arm_sort(x[0]))
+            ],
+        ),
+        "",
+        figs.bars(
+            "fig6_overall",
+            "Overall F1 (Fig. 6)",
+            {"all scenes": {a: v["f1"] for a, v in overall.items()}},
+        ),
+    ]
     # Fig. 9: translation error
     s3 = select(clean, scenario=3)
     terr_rows = s3 if s3 else clean
     terr = pool(terr_rows, arm_label)
-    where = "scenario 3 (200 m), as Fig. 9" if s3 else "all scenarios run (scenario 3 was not in this evaluation)"
-    parts += ["", f"## Translation error of the true positives (Fig. 9) — {where}", "",
-              _table(["pipeline / descriptor", "TP", "median T_error (m)", "max (m)", "paper"],
-                     [[a, str(v["tp"]), _num(v["t_error_median_m"]),
-                       _num(max(v["t_errors_m"]) if v["t_errors_m"] else None),
-                       (f"*largest median of the variant: {PAPER_T_ERROR_MAX_M[a.split('/')[0]][0]} m "
-                        f"({PAPER_T_ERROR_MAX_M[a.split('/')[0]][1]})*" if a.split('/')[0] in PAPER_T_ERROR_MAX_M
-                        else "")]
-                      for a, v in sorted(terr.items(), key=lambda x: _arm_sort(x[0]))]), "",
-              figs.boxes("fig9_terror", "T_error of TP scenes", {a: v["t_errors_m"] for a, v in terr.items()},
-                         "metres")]
+    where = (
+        "scenario 3 (200 m), as Fig. 9"
+        if s3
+        else "all scenarios run (scenario 3 was not in this evaluation)"
+    )
+    parts += [
+        "",
+        f"## Translation error of the true positives (Fig. 9) — {where}",
+        "",
+        _table(
+            ["pipeline / descriptor", "TP", "median T_error (m)", "max (m)", "paper"],
+            [
+                [
+                    a,
+                    str(v["tp"]),
+                    _num(v["t_error_median_m"]),
+                    _num(max(v["t_errors_m"]) if v["t_errors_m"] else None),
+                    (
+                        f"*largest median of the variant: {PAPER_T_ERROR_MAX_M[a.split('/')[0]][0]} m "
+                        f"({PAPER_T_ERROR_MAX_M[a.split('/')[0]][1]})*"
+                        if a.split("/")[0] in PAPER_T_ERROR_MAX_M
+                        else ""
+                    ),
+                ]
+                for a, v in sorted(terr.items(), key=lambda x: _arm_sort(x[0]))
+            ],
+        ),
+        "",
+        figs.boxes(
+            "fig9_terror",
+            "T_error of TP scenes",
+            {a: v["t_errors_m"] for a, v in terr.items()},
+            "metres",
+        ),
+    ]
     # Fig. 10: compactness
-    parts += ["", "## Compactness = F1 / descriptor length (Fig. 10, eq. 6)", "",
-              _table(["pipeline / descriptor", "F1", "length", "compactness (x1000)"],
-                     [[a, _pct(v["f1"]), str(DESCRIPTOR_LENGTH[a.split("/")[1]]),
-                       _num(1000 * compactness(v["f1"], a.split("/")[1]), ".3f")]
-                      for a, v in sorted(overall.items(), key=lambda x: _arm_sort(x[0]))]), "",
-              figs.bars("fig10_compactness", "Compactness x1000 (Fig. 10)",
-                        {"all scenes": {a: 1000 * compactness(v["f1"], a.split("/")[1]) for a, v in overall.items()}},
-                        ylabel="F1 / length x 1000", ylim=None)]
+    parts += [
+        "",
+        "## Compactness = F1 / descriptor length (Fig. 10, eq. 6)",
+        "",
+        _table(
+            ["pipeline / descriptor", "F1", "length", "compactness (x1000)"],
+            [
+                [
+                    a,
+                    _pct(v["f1"]),
+                    str(DESCRIPTOR_LENGTH[a.split("/")[1]]),
+                    _num(1000 * compactness(v["f1"], a.split("/")[1]), ".3f"),
+                ]
+                for a, v in sorted(overall.items(), key=lambda x: _arm_sort(x[0]))
+            ],
+        ),
+        "",
+        figs.bars(
+            "fig10_compactness",
+            "Compactness x1000 (Fig. 10)",
+            {
+                "all scenes": {
+                    a: 1000 * compactness(v["f1"], a.split("/")[1]) for a, v in overall.items()
+                }
+            },
+            ylabel="F1 / length x 1000",
+            ylim=None,
+        ),
+    ]
     # Figs. 11-12: noise
     noises = sorted({r["noise"] for r in details})
     if len(noises) > 1:
         # only runs flown with every noise setting, so each column pools the same scenes
-        sets = {n: {(r["scenario"], r["run"], arm_label(r)) for r in details if r["noise"] == n} for n in noises}
+        sets = {
+            n: {(r["scenario"], r["run"], arm_label(r)) for r in details if r["noise"] == n}
+            for n in noises
+        }
         common = set.intersection(*sets.values())
-        by_noise = _f1_by([r for r in details if (r["scenario"], r["run"], arm_label(r)) in common],
-                          lambda r: r["noise"])
-        parts += ["", "## Robustness to shot noise and Gaussian noise (Figs. 11, 12)", "",
-                  "Noise as implemented by the simulator (`atr.sim.noise`): shot = Poisson photo-electrons on the "
-                  "images and Poisson LIDAR ranges; gaussian:σ = σ cm on each LIDAR coordinate and σ/100 of full "
-                  "scale on the image. Only the runs flown with every noise setting are pooled, so each column "
-                  "holds the same scenes: "
-                  + ", ".join(f"scenario {s} run {r}" for s, r in sorted({(c[0], c[1]) for c in common})) + ".", "",
-                  _f1_table(by_noise, "noise"), "",
-                  figs.bars("fig11_12_noise", "F1 under noise (Figs. 11, 12)",
-                            {k: {a: v["f1"] for a, v in g.items()} for k, g in by_noise.items()})]
+        by_noise = _f1_by(
+            [r for r in details if (r["scenario"], r["run"], arm_label(r)) in common],
+            lambda r: r["noise"],
+        )
+        parts += [
+            "",
+            "## Robustness to shot noise and Gaussian noise (Figs. 11, 12)",
+            "",
+            "Noise as implemented by the simulator (`atr.sim.noise`): shot = Poisson photo-electrons on the "
+            "images and Poisson LIDAR ranges; gaussian:σ = σ cm on each LIDAR coordinate and σ/100 of full "
+            "scale on the image. Only the runs flown with every noise setting are pooled, so each column "
+            "holds the same scenes: "
+            + ", ".join(f"scenario {s} run {r}" for s, r in sorted({(c[0], c[1]) for c in common}))
+            + ".",
+            "",
+            _f1_table(by_noise, "noise"),
+            "",
+            figs.bars(
+                "fig11_12_noise",
+                "F1 under noise (Figs. 11, 12)",
+                {k: {a: v["f1"] for a, v in g.items()} for k, g in by_noise.items()},
+            ),
+        ]
     else:
-        parts += ["", "## Robustness to noise (Figs. 11, 12)", "", "Not run in this evaluation (no `--noise`)."]
+        parts += [
+            "",
+            "## Robustness to noise (Figs. 11, 12)",
+            "",
+            "Not run in this evaluation (no `--noise`).",
+        ]
     # Table V and Fig. 8
     v_rows = []
     stages = {}
@@ -288,23 +475,53 @@ def build_report(details: Sequence[Mapping[str, Any]], configs: Sequence[Mapping
         pipeline, descriptor = a.split("/")
         first = next(r for r in clean if arm_label(r) == a)
         paper_key = pipeline if pipeline.startswith("2d") else descriptor
-        paper_time = (PAPER_TABLE_V_TIME_S["2d"].get(pipeline) if pipeline.startswith("2d")
-                      else PAPER_TABLE_V_TIME_S.get(pipeline, {}).get(descriptor))
-        points = [r.get("cloud_points_median") for r in select(clean, pipeline=pipeline, descriptor=descriptor)]
+        paper_time = (
+            PAPER_TABLE_V_TIME_S["2d"].get(pipeline)
+            if pipeline.startswith("2d")
+            else PAPER_TABLE_V_TIME_S.get(pipeline, {}).get(descriptor)
+        )
+        points = [
+            r.get("cloud_points_median")
+            for r in select(clean, pipeline=pipeline, descriptor=descriptor)
+        ]
         points = [p for p in points if p is not None]
-        v_rows.append([a, _num(first.get("template_storage_kb")), f"*{_num(PAPER_TABLE_V_STORAGE_KB.get(paper_key))}*",
-                       _num(v["time_per_scene_ms"] / 1000, ".3f"), f"*{_num(paper_time)}*",
-                       _num(sum(points) / len(points), ".0f") if points and not pipeline.startswith("2d") else "–"])
+        v_rows.append(
+            [
+                a,
+                _num(first.get("template_storage_kb")),
+                f"*{_num(PAPER_TABLE_V_STORAGE_KB.get(paper_key))}*",
+                _num(v["time_per_scene_ms"] / 1000, ".3f"),
+                f"*{_num(paper_time)}*",
+                _num(sum(points) / len(points), ".0f")
+                if points and not pipeline.startswith("2d")
+                else "–",
+            ]
+        )
         stages[a] = v["stages_ms"]
-    parts += ["", "## Requirements: template storage and processing time (Table V, Fig. 8)", "",
-              _table(["pipeline / descriptor", "template KB", "paper KB", "s / scene", "paper s / scene",
-                      "cloud points (median)"], v_rows), "",
-              "Template storage: descriptors + keypoint positions of the T-72 template (3D: float32, every view "
-              "the template holds; 2D: all 12 templates' keypoints and descriptors). Time per scene: median over each run's scenes, pooled "
-              "weighted by scenes; SfM includes the two-view reconstruction, LIDAR is the matcher alone, 2D is "
-              "detection, description and matching against the 12 templates. The paper's times are on an i7 at "
-              "2.6 GHz; ours on a shared 2-core VM under load.", "",
-              figs.stacked("fig8_stages", "Processing time per stage (Fig. 8)", stages)]
+    parts += [
+        "",
+        "## Requirements: template storage and processing time (Table V, Fig. 8)",
+        "",
+        _table(
+            [
+                "pipeline / descriptor",
+                "template KB",
+                "paper KB",
+                "s / scene",
+                "paper s / scene",
+                "cloud points (median)",
+            ],
+            v_rows,
+        ),
+        "",
+        "Template storage: descriptors + keypoint positions of the T-72 template (3D: float32, every view "
+        "the template holds; 2D: all 12 templates' keypoints and descriptors). Time per scene: median over each run's scenes, pooled "
+        "weighted by scenes; SfM includes the two-view reconstruction, LIDAR is the matcher alone, 2D is "
+        "detection, description and matching against the 12 templates. The paper's times are on an i7 at "
+        "2.6 GHz; ours on a shared 2-core VM under load.",
+        "",
+        figs.stacked("fig8_stages", "Processing time per stage (Fig. 8)", stages),
+    ]
     discussion = out / "discussion.md"
     if discussion.exists():
         parts += ["", discussion.read_text().strip()]
@@ -320,7 +537,9 @@ def run(args: argparse.Namespace) -> int:
     configs: list[dict] = []
     for folder in folders:
         if not (folder / "details.json").exists():
-            raise InputError(f"{folder / 'details.json'} not found: run `atr eval` first or pass --results")
+            raise InputError(
+                f"{folder / 'details.json'} not found: run `atr eval` first or pass --results"
+            )
         details += json.loads((folder / "details.json").read_text())["results"]
         configs.append(json.loads((folder / "config.json").read_text()))
     out = args.out

@@ -1,4 +1,4 @@
-"""Classic 2D local-feature ATR, the paper's baseline (Fig. 3, Table IV): pure functions on images."""
+"""Classic 2D local-feature ATR, the paper's baseline (Fig. 3, Table IV)."""
 
 from atr.baselines2d.config import PAIRS, Baseline2dConfig
 from atr.baselines2d.detect import Detection2d, Result2d, ground_intersection, recognize_2d

@@ -51,6 +51,7 @@ class Baseline2dConfig:
         ground_height_m: height of the ground plane the detection ray is intersected with, metres (the
             simulator's terrain is flat at z = 0 within ~15 m of the target; the paper's "T_error extended to
             2D ATR", §III-C).
+
     """
 
     n_templates: int = 12
@@ -75,7 +76,9 @@ class Baseline2dConfig:
             if getattr(self, name) < 1:
                 raise ConfigError(f"{name} = {getattr(self, name)} must be >= 1")
         if self.min_inliers < 3:
-            raise ConfigError(f"min_inliers = {self.min_inliers} must be >= 3 (an affine transform needs 3)")
+            raise ConfigError(
+                f"min_inliers = {self.min_inliers} must be >= 3 (an affine transform needs 3)"
+            )
         for name in ("gftt_min_quality", "fast_min_contrast", "msac_max_distance_px"):
             value = getattr(self, name)
             if not math.isfinite(value) or value <= 0:

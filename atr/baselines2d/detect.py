@@ -1,4 +1,4 @@
-"""The 2D ATR pipeline (paper Fig. 3): scene features -> NNDR matches per template -> MSAC transform -> detection.
+"""The 2D ATR pipeline (paper Fig. 3): features -> NNDR matches -> MSAC transform -> detection.
 
 A template is recognised when the affine transform MSAC fits between its keypoints and the scene's keeps at
 least `min_inliers` inliers; the template with most inliers gives the scene's one hypothesis. Its 3D position
@@ -33,6 +33,7 @@ class Detection2d:
         score: MSAC inliers of the winning template.
         template_azimuth_deg: azimuth step of the winning template.
         pixel: (2,) float64 the transformed template reference point in the scene, pixels.
+
     """
 
     target: str
@@ -50,15 +51,20 @@ class Result2d:
     stage_times_ms: dict[str, float] = field(default_factory=dict)
 
 
-def ground_intersection(pixel: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray, ground_z_m: float,
-                        ) -> np.ndarray | None:
-    """World point where the ray through `pixel` meets the plane z = ground_z_m; None if it never does.
+def ground_intersection(
+    pixel: np.ndarray,
+    K: np.ndarray,
+    T_world_cam: np.ndarray,
+    ground_z_m: float,
+) -> np.ndarray | None:
+    """World point where the ray through `pixel` meets the plane z = ground_z_m (None: never).
 
     Args:
         pixel: (2,) pixel coordinates (u, v).
         K: (3, 3) intrinsics.
         T_world_cam: (4, 4) world-from-camera pose (OpenCV axes).
         ground_z_m: plane height, metres.
+
     """
     ray_cam = np.linalg.solve(np.asarray(K, np.float64), np.array([pixel[0], pixel[1], 1.0]))
     ray = T_world_cam[:3, :3] @ ray_cam
@@ -68,7 +74,9 @@ def ground_intersection(pixel: np.ndarray, K: np.ndarray, T_world_cam: np.ndarra
     return origin + ray * (ground_z_m - origin[2]) / ray[2]
 
 
-def _msac(params: cv2.UsacParams, src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray | None, int]:
+def _msac(
+    params: cv2.UsacParams, src: np.ndarray, dst: np.ndarray
+) -> tuple[np.ndarray | None, int]:
     if len(src) < _AFFINE_MIN_POINTS:
         return None, 0
     M, inliers = cv2.estimateAffine2D(src.astype(np.float32), dst.astype(np.float32), params=params)
@@ -77,8 +85,16 @@ def _msac(params: cv2.UsacParams, src: np.ndarray, dst: np.ndarray) -> tuple[np.
     return M, int(inliers.sum())
 
 
-def recognize_2d(image: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray, templates: list[Template2d],
-                 pair: str, config: Baseline2dConfig, *, seed: int) -> Result2d:
+def recognize_2d(
+    image: np.ndarray,
+    K: np.ndarray,
+    T_world_cam: np.ndarray,
+    templates: list[Template2d],
+    pair: str,
+    config: Baseline2dConfig,
+    *,
+    seed: int,
+) -> Result2d:
     """Recognise the target in one image with the 2D templates (Fig. 3).
 
     Args:
@@ -92,6 +108,7 @@ def recognize_2d(image: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray, temp
 
     Returns:
         At most one detection (the template with most inliers, when it has enough).
+
     """
     t0 = time.perf_counter()
     scene = detect_and_describe(image, pair, config)
@@ -119,7 +136,16 @@ def recognize_2d(image: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray, temp
         if point is not None and 0 <= pixel[0] < w and 0 <= pixel[1] < h:
             T = np.eye(4)
             T[:3, 3] = point
-            detections.append(Detection2d(template.view.target, T, float(inliers),
-                                          template.view.azimuth_deg, pixel))
-    return Result2d(detections, {"describe": 1e3 * (t1 - t0), "match": 1e3 * (t2 - t1),
-                                 "total": 1e3 * (time.perf_counter() - t0)})
+            detections.append(
+                Detection2d(
+                    template.view.target, T, float(inliers), template.view.azimuth_deg, pixel
+                )
+            )
+    return Result2d(
+        detections,
+        {
+            "describe": 1e3 * (t1 - t0),
+            "match": 1e3 * (t2 - t1),
+            "total": 1e3 * (time.perf_counter() - t0),
+        },
+    )

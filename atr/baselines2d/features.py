@@ -1,4 +1,4 @@
-"""The four detector/descriptor combinations of Table IV, from OpenCV (GFTT, FAST, FREAK, BRISK) and our SURF.
+"""The four detector/descriptor pairs of Table IV: OpenCV's GFTT, FAST, FREAK, BRISK, and our SURF.
 
 OpenCV's contrib wheel has FREAK (cv2.xfeatures2d) and BRISK (cv2.BRISK_create in OpenCV 5's main module, or
 xfeatures2d); SURF is non-free and absent, so #2 uses `atr.sfm.Surf` (Bay et al. 2008, six scale levels).
@@ -24,6 +24,7 @@ class Features2d:
         xy_px: (N, 2) float32 keypoint positions, pixels.
         descriptors: (N, L) uint8 (binary: FREAK, BRISK) or float32 (SURF).
         binary: descriptors compare by Hamming distance (else L2).
+
     """
 
     xy_px: np.ndarray
@@ -47,7 +48,10 @@ def _as_gray_u8(image: np.ndarray) -> np.ndarray:
     if img.ndim == 3 and img.shape[2] == 3:
         img = cv2.cvtColor(np.ascontiguousarray(img, np.uint8), cv2.COLOR_RGB2GRAY)
     if img.ndim != 2 or img.dtype != np.uint8 or min(img.shape) < 8:
-        raise InputError(f"image must be (H, W) or (H, W, 3) uint8 of at least 8x8 px; got {img.dtype} {img.shape}")
+        raise InputError(
+            f"image must be (H, W) or (H, W, 3) uint8 of at least 8x8 px; "
+            f"got {img.dtype} {img.shape}"
+        )
     return np.ascontiguousarray(img)
 
 
@@ -65,6 +69,7 @@ def detect_and_describe(image: np.ndarray, pair: str, config: Baseline2dConfig) 
     Raises:
         ConfigError: unknown pair.
         InputError: not an 8-bit image.
+
     """
     if pair not in PAIRS:
         raise ConfigError(f"2D pair {pair!r} must be one of {sorted(PAIRS)}")
@@ -75,18 +80,29 @@ def detect_and_describe(image: np.ndarray, pair: str, config: Baseline2dConfig) 
         from atr.sfm import Surf  # noqa: PLC0415 - numba kernels load only for this pair
 
         keypoints, desc = Surf(sfm).detect_and_compute(gray.astype(np.float32) / 255.0)
-        return Features2d(np.ascontiguousarray(keypoints[:, :2], np.float32),
-                          np.ascontiguousarray(desc, np.float32), binary=False)
+        return Features2d(
+            np.ascontiguousarray(keypoints[:, :2], np.float32),
+            np.ascontiguousarray(desc, np.float32),
+            binary=False,
+        )
     if detector == "gftt":
-        gftt = cv2.GFTTDetector_create(maxCorners=config.max_keypoints, qualityLevel=config.gftt_min_quality,
-                                       minDistance=1.0, blockSize=config.gftt_filter_size_px,
-                                       gradientSize=config.gftt_filter_size_px)
+        gftt = cv2.GFTTDetector_create(
+            maxCorners=config.max_keypoints,
+            qualityLevel=config.gftt_min_quality,
+            minDistance=1.0,
+            blockSize=config.gftt_filter_size_px,
+            gradientSize=config.gftt_filter_size_px,
+        )
         keypoints = gftt.detect(gray)
     else:
-        fast = cv2.FastFeatureDetector_create(threshold=config.fast_threshold, nonmaxSuppression=True)
+        fast = cv2.FastFeatureDetector_create(
+            threshold=config.fast_threshold, nonmaxSuppression=True
+        )
         keypoints = fast.detect(gray)
     # Strongest first, ties by position, so the kept subset never depends on OpenCV's internal order.
-    keypoints = sorted(keypoints, key=lambda k: (-k.response, k.pt[1], k.pt[0]))[: config.max_keypoints]
+    keypoints = sorted(keypoints, key=lambda k: (-k.response, k.pt[1], k.pt[0]))[
+        : config.max_keypoints
+    ]
     # FREAK and BRISK need a scale for their sampling pattern; GFTT/FAST points carry the detector window.
     extractor = cv2.xfeatures2d.FREAK_create() if descriptor == "freak" else _brisk()
     keypoints, desc = extractor.compute(gray, keypoints)
@@ -106,6 +122,7 @@ def match_nndr(query: Features2d, train: Features2d, ratio: float) -> np.ndarray
 
     Returns:
         (M, 2) int64 index pairs (query index, train index).
+
     """
     if len(query.xy_px) == 0 or len(train.xy_px) < 2:
         return np.zeros((0, 2), np.int64)

@@ -1,4 +1,4 @@
-"""2D templates of the target (paper §III-D): 12 image crops from scenario 1 run 1, one per 30 deg of azimuth.
+"""2D templates of the target (paper §III-D): 12 crops from scenario 1 run 1, one per 30° of azimuth.
 
 For each azimuth step the frame of the run whose viewing azimuth (the camera's bearing in the target's own
 frame) is nearest is rendered, and the target's projected bounding box (plus a margin) is cropped. Only the
@@ -34,6 +34,7 @@ class TemplateView:
         frame: frame index in the template run.
         image: (h, w, 3) uint8 RGB crop.
         reference_px: (2,) float64 the target origin's projection in crop pixels.
+
     """
 
     target: str
@@ -53,8 +54,10 @@ class Template2d:
 
 
 def viewing_azimuth_deg(T_world_target: np.ndarray, camera_position_m: np.ndarray) -> float:
-    """Bearing of the camera in the target's frame (0 deg: in front of it, counter-clockwise), degrees in [0, 360)."""
-    d = T_world_target[:3, :3].T @ (np.asarray(camera_position_m, np.float64) - T_world_target[:3, 3])
+    """Bearing of the camera in the target's frame, degrees in [0, 360) (0: ahead, counter-clockwise)."""
+    d = T_world_target[:3, :3].T @ (
+        np.asarray(camera_position_m, np.float64) - T_world_target[:3, 3]
+    )
     return float(np.degrees(np.arctan2(d[1], d[0])) % 360.0)
 
 
@@ -77,26 +80,41 @@ def _frame_pose(world: World, cfg: SimConfig, t_s: float) -> np.ndarray:
     return T_world_imu @ cfg.T_imu_cam_matrix
 
 
-def crop_template_views(seed: int, sim_config: SimConfig, config: Baseline2dConfig, *,
-                        target_mesh: Mesh | None = None, target_name: str | None = None,
-                        clutter_meshes: tuple[Mesh, ...] = ()) -> list[TemplateView]:
+def crop_template_views(
+    seed: int,
+    sim_config: SimConfig,
+    config: Baseline2dConfig,
+    *,
+    target_mesh: Mesh | None = None,
+    target_name: str | None = None,
+    clutter_meshes: tuple[Mesh, ...] = (),
+) -> list[TemplateView]:
     """Render and crop the template views from the template run (scenario 1 run 1 by default).
 
     Args:
         seed: world seed (the templates come from the evaluated world, as in the paper).
         sim_config: simulator settings (camera).
         config: number of templates, crop margin, visibility floor.
-        target_mesh, target_name, clutter_meshes: as for `simulate_flight`.
+        target_mesh: mesh replacing the T-72, as for `simulate_flight`.
+        target_name: name of that target.
+        clutter_meshes: extra confuser meshes, as for `simulate_flight`.
 
     Returns:
         Up to `n_templates` views, in azimuth order; a step with no frame seeing the target well is skipped.
 
     Raises:
         InputError: no frame of the run sees the target.
+
     """
     sc = scenario_preset(config.template_scenario, config.template_run)
-    world = build_world(sc, seed, target_mesh=target_mesh, target_name=target_name,
-                        clutter_meshes=clutter_meshes, config=sim_config)
+    world = build_world(
+        sc,
+        seed,
+        target_mesh=target_mesh,
+        target_name=target_name,
+        clutter_meshes=clutter_meshes,
+        config=sim_config,
+    )
     renderer = Renderer(world, sim_config)
     interval = sim_config.frame_interval_s(sc.range_m)
     poses = [_frame_pose(world, sim_config, k * interval) for k in range(sc.n_frames)]
@@ -116,15 +134,27 @@ def crop_template_views(seed: int, sim_config: SimConfig, config: Baseline2dConf
             if view is None:
                 continue
             image, reference = view
-            views.append(TemplateView(world.target_name, wanted, float(azimuths[k]), int(k), image, reference))
+            views.append(
+                TemplateView(
+                    world.target_name, wanted, float(azimuths[k]), int(k), image, reference
+                )
+            )
             break
     if not views:
-        raise InputError(f"no frame of scenario {sc.scenario} run {sc.run} (seed {seed}) sees the target")
+        raise InputError(
+            f"no frame of scenario {sc.scenario} run {sc.run} (seed {seed}) sees the target"
+        )
     return views
 
 
-def _crop(renderer: Renderer, world: World, K: np.ndarray, T_world_cam: np.ndarray, cfg: SimConfig,
-          margin_frac: float) -> tuple[np.ndarray, np.ndarray] | None:
+def _crop(
+    renderer: Renderer,
+    world: World,
+    K: np.ndarray,
+    T_world_cam: np.ndarray,
+    cfg: SimConfig,
+    margin_frac: float,
+) -> tuple[np.ndarray, np.ndarray] | None:
     uv = project(world.target.vertices, K, T_world_cam)
     if np.isnan(uv).any():
         return None
@@ -135,12 +165,14 @@ def _crop(renderer: Renderer, world: World, K: np.ndarray, T_world_cam: np.ndarr
     if x1 - x0 < 8 or y1 - y0 < 8:
         return None
     linear, _ = renderer.render(T_world_cam)
-    image = to_srgb8(linear)[y0:y1 + 1, x0:x1 + 1].copy()
+    image = to_srgb8(linear)[y0 : y1 + 1, x0 : x1 + 1].copy()
     origin = project(world.T_world_target[None, :3, 3], K, T_world_cam)[0]
     return image, origin - np.array([x0, y0], np.float64)
 
 
-def describe_templates(views: list[TemplateView], pair: str, config: Baseline2dConfig) -> list[Template2d]:
+def describe_templates(
+    views: list[TemplateView], pair: str, config: Baseline2dConfig
+) -> list[Template2d]:
     """Describe every template view with one Table IV combination."""
     return [Template2d(v, detect_and_describe(v.image, pair, config)) for v in views]
 

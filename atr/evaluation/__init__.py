@@ -1,4 +1,4 @@
-"""The paper's evaluation (§III): run flights through the pipelines, score them (§III-C), pool the results.
+"""The paper's evaluation (§III): run flights through the pipelines, score (§III-C), pool.
 
 - `runner`: `run_flight(flight, arms, config, templates_3d, templates_2d)` — the services' computations in-process.
 - `scoring`: `score_record`, `summarise` — the F1 of eq. (5) with the 2 m translation-error rule.

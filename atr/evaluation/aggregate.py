@@ -1,4 +1,4 @@
-"""Pool per-run results into the paper's views (Figs. 4-12, Table V) and hold the paper's own numbers.
+"""Pool per-run results into the paper's views (Figs. 4-12, Table V); the paper's own numbers.
 
 Rows are the detailed rows `atr eval` writes (results/<timestamp>/details.json). Counts are pooled over runs
 before F1 is computed (F1 of the pooled TP/FP/FN, eq. 5), translation errors are pooled over TP scenes.
@@ -14,71 +14,143 @@ import numpy as np
 from atr.evaluation.metrics import Counts
 
 DESCRIPTOR_LENGTH: dict[str, int] = {
-    "shot": 352, "usc": 1980, "3dsc": 1980, "fpfh": 33, "rops": 135, "hod": 240, "hod-s": 40,  # Table III
-    "gftt+freak": 64, "surf+surf": 64, "fast+brisk": 64, "fast+freak": 64,  # Table IV
+    "shot": 352,
+    "usc": 1980,
+    "3dsc": 1980,
+    "fpfh": 33,
+    "rops": 135,
+    "hod": 240,
+    "hod-s": 40,  # Table III
+    "gftt+freak": 64,
+    "surf+surf": 64,
+    "fast+brisk": 64,
+    "fast+freak": 64,  # Table IV
 }
 """Descriptor cardinality used by compactness (eq. 6), from the paper's Tables III and IV."""
 
 PAPER_OBLIQUITY_F1: dict[str, dict[str, tuple[float, str]]] = {
     # §III-D-2, best F1 per method family at low (0-15 deg), medium (30 deg) and high (45 deg) obliquity
-    "low": {"gftt-sfm": (0.815, "USC"), "surf-sfm": (0.767, "HoD-S"), "lidar": (0.56, "FPFH"), "2d": (0.60, "")},
-    "medium": {"gftt-sfm": (0.98, ""), "surf-sfm": (0.98, ""), "lidar": (0.99, ""), "2d": (0.76, "")},
-    "high": {"gftt-sfm": (0.908, ""), "surf-sfm": (0.96, ""), "lidar": (1.0, "near-perfect"),
-             "2d": (0.723, "")},
+    "low": {
+        "gftt-sfm": (0.815, "USC"),
+        "surf-sfm": (0.767, "HoD-S"),
+        "lidar": (0.56, "FPFH"),
+        "2d": (0.60, ""),
+    },
+    "medium": {
+        "gftt-sfm": (0.98, ""),
+        "surf-sfm": (0.98, ""),
+        "lidar": (0.99, ""),
+        "2d": (0.76, ""),
+    },
+    "high": {
+        "gftt-sfm": (0.908, ""),
+        "surf-sfm": (0.96, ""),
+        "lidar": (1.0, "near-perfect"),
+        "2d": (0.723, ""),
+    },
 }
 """F1 the paper states in §III-D-2 (fractions)."""
 
 PAPER_TABLE_V_STORAGE_KB: dict[str, float] = {
-    "shot": 2.9, "usc": 15.9, "hod-s": 0.32, "hod": 1.92, "fpfh": 0.26, "3dsc": 15.9, "rops": 1.1,
-    "2d-1": 2213.0, "2d-2": 1389.0, "2d-3": 1224.0, "2d-4": 3106.0,
+    "shot": 2.9,
+    "usc": 15.9,
+    "hod-s": 0.32,
+    "hod": 1.92,
+    "fpfh": 0.26,
+    "3dsc": 15.9,
+    "rops": 1.1,
+    "2d-1": 2213.0,
+    "2d-2": 1389.0,
+    "2d-3": 1224.0,
+    "2d-4": 3106.0,
 }
 """Template storage, KB (Table V)."""
 
 PAPER_TABLE_V_TIME_S: dict[str, dict[str, float]] = {
-    "gftt-sfm": {"shot": 0.42, "usc": 0.57, "hod-s": 0.25, "hod": 0.26, "fpfh": 0.38, "3dsc": 0.69, "rops": 0.30},
-    "surf-sfm": {"shot": 0.73, "usc": 0.78, "hod-s": 0.54, "hod": 0.55, "fpfh": 0.66, "3dsc": 0.84, "rops": 0.62},
-    "lidar": {"shot": 4.0, "usc": 11.5, "hod-s": 1.6, "hod": 2.2, "fpfh": 2.5, "3dsc": 11.1, "rops": 14.3},
+    "gftt-sfm": {
+        "shot": 0.42,
+        "usc": 0.57,
+        "hod-s": 0.25,
+        "hod": 0.26,
+        "fpfh": 0.38,
+        "3dsc": 0.69,
+        "rops": 0.30,
+    },
+    "surf-sfm": {
+        "shot": 0.73,
+        "usc": 0.78,
+        "hod-s": 0.54,
+        "hod": 0.55,
+        "fpfh": 0.66,
+        "3dsc": 0.84,
+        "rops": 0.62,
+    },
+    "lidar": {
+        "shot": 4.0,
+        "usc": 11.5,
+        "hod-s": 1.6,
+        "hod": 2.2,
+        "fpfh": 2.5,
+        "3dsc": 11.1,
+        "rops": 14.3,
+    },
     "2d": {"2d-1": 0.58, "2d-2": 0.05, "2d-3": 0.09, "2d-4": 0.74},
 }
-"""Processing time per scene, seconds (Table V; the 2D times sit in the SURF row of the printed table)."""
+"""Processing time per scene, seconds (Table V; its 2D times sit in the SfM SURF row)."""
 
-PAPER_T_ERROR_MAX_M: dict[str, tuple[float, str]] = {"gftt-sfm": (0.51, "HoD-S"), "surf-sfm": (0.75, "FPFH")}
+PAPER_T_ERROR_MAX_M: dict[str, tuple[float, str]] = {
+    "gftt-sfm": (0.51, "HoD-S"),
+    "surf-sfm": (0.75, "FPFH"),
+}
 """Largest median translation error per SfM variant, scenario 3 (§III-D-4, Fig. 9), metres."""
 
 OBLIQUITY_CLASS: dict[float, str] = {0.0: "low", 15.0: "low", 30.0: "medium", 45.0: "high"}
-"""The paper groups 0-15 deg as low (its Fig. 5a says 15 deg, its text 0 deg), 30 medium, 45 high."""
+"""Obliquity classes: 0-15° low (Fig. 5a says 15°, the text 0°), 30° medium, 45° high."""
 
 
 def arm_label(row: Mapping[str, Any]) -> str:
-    """"pipeline/descriptor" of a row (e.g. "gftt-sfm/shot", "2d-1/gftt+freak")."""
+    """Label a row as pipeline/descriptor (e.g. gftt-sfm/shot, 2d-1/gftt+freak)."""
     return f"{row['pipeline']}/{row['descriptor']}"
 
 
-def pool(rows: Iterable[Mapping[str, Any]], key: Callable[[Mapping[str, Any]], Any]) -> dict[Any, dict[str, Any]]:
-    """Pool rows by key: summed counts, F1 of the sums, pooled translation errors, median scene time.
+def pool(
+    rows: Iterable[Mapping[str, Any]], key: Callable[[Mapping[str, Any]], Any]
+) -> dict[Any, dict[str, Any]]:
+    """Pool rows by key: summed counts, F1 of the sums, pooled translation errors, scene time.
 
     Returns:
         key -> {"tp", "fp", "fn", "tn", "f1", "scenes", "t_errors_m", "t_error_median_m", "time_per_scene_ms",
         "stages_ms", "runs"}.
+
     """
     groups: dict[Any, list[Mapping[str, Any]]] = {}
     for row in rows:
         groups.setdefault(key(row), []).append(row)
     out = {}
     for k, members in groups.items():
-        counts = Counts(*(sum(int(r.get(f) or 0) for r in members) for f in ("tp", "fp", "fn", "tn")))
+        counts = Counts(
+            *(sum(int(r.get(f) or 0) for r in members) for f in ("tp", "fp", "fn", "tn"))
+        )
         errors = [e for r in members for e in (r.get("t_errors_m") or [])]
         times = [r["time_per_scene_ms"] for r in members if r.get("time_per_scene_ms") is not None]
         weights = [r["scenes"] for r in members if r.get("time_per_scene_ms") is not None]
         stage_names = sorted({s for r in members for s in (r.get("stages_ms") or {})})
         out[k] = {
-            "tp": counts.tp, "fp": counts.fp, "fn": counts.fn, "tn": counts.tn, "f1": counts.f1,
+            "tp": counts.tp,
+            "fp": counts.fp,
+            "fn": counts.fn,
+            "tn": counts.tn,
+            "f1": counts.f1,
             "scenes": sum(int(r["scenes"]) for r in members),
             "t_errors_m": errors,
             "t_error_median_m": float(np.median(errors)) if errors else float("nan"),
-            "time_per_scene_ms": float(np.average(times, weights=weights)) if times and sum(weights) else float("nan"),
-            "stages_ms": {s: float(np.mean([(r.get("stages_ms") or {}).get(s, 0.0) for r in members]))
-                          for s in stage_names},
+            "time_per_scene_ms": float(np.average(times, weights=weights))
+            if times and sum(weights)
+            else float("nan"),
+            "stages_ms": {
+                s: float(np.mean([(r.get("stages_ms") or {}).get(s, 0.0) for r in members]))
+                for s in stage_names
+            },
             "runs": len(members),
         }
     return out
@@ -91,4 +163,8 @@ def compactness(f1: float, descriptor: str) -> float:
 
 def select(rows: Sequence[Mapping[str, Any]], **where: Any) -> list[Mapping[str, Any]]:
     """Rows whose fields equal every given value (a callable value is a predicate)."""
-    return [r for r in rows if all(v(r.get(k)) if callable(v) else r.get(k) == v for k, v in where.items())]
+    return [
+        r
+        for r in rows
+        if all(v(r.get(k)) if callable(v) else r.get(k) == v for k, v in where.items())
+    ]

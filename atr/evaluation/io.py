@@ -1,4 +1,4 @@
-"""Result files of the evaluation: one JSON file per (flight, arm), keyed by every parameter and the code version.
+"""Result files: one JSON file per (flight, arm), keyed by every parameter and the code version.
 
 A run's file is reused only when its key matches: same flight, arm, effective configuration and code version
 (a hash of the `atr` package sources), so a resumed evaluation never mixes results of different code.
@@ -48,17 +48,39 @@ def jsonable(value: Any) -> Any:
 
 def run_key(flight: Flight, arm: Arm, effective_config: Mapping[str, Any], version: str) -> str:
     """The key of one (flight, arm) result: a hash of everything it depends on, 24 hex digits."""
-    payload = json.dumps(jsonable({"flight": flight, "arm": arm, "config": effective_config,
-                                   "code": version, "format": RESULT_FORMAT}), sort_keys=True)
+    payload = json.dumps(
+        jsonable(
+            {
+                "flight": flight,
+                "arm": arm,
+                "config": effective_config,
+                "code": version,
+                "format": RESULT_FORMAT,
+            }
+        ),
+        sort_keys=True,
+    )
     return hashlib.sha256(payload.encode()).hexdigest()[:24]
 
 
-def save_run(path: Path, flight: Flight, arm: Arm, key: str, records: list[SceneRecord],
-             extra: Mapping[str, Any] | None = None) -> None:
-    """Write one run's scene records atomically (a crash never leaves a half file that looks current)."""
+def save_run(
+    path: Path,
+    flight: Flight,
+    arm: Arm,
+    key: str,
+    records: list[SceneRecord],
+    extra: Mapping[str, Any] | None = None,
+) -> None:
+    """Write one run's scene records atomically (a crash never leaves a half file)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    data = {"format": RESULT_FORMAT, "key": key, "flight": jsonable(flight), "arm": jsonable(arm),
-            "scenes": [jsonable(r.to_dict()) for r in records], "extra": jsonable(dict(extra or {}))}
+    data = {
+        "format": RESULT_FORMAT,
+        "key": key,
+        "flight": jsonable(flight),
+        "arm": jsonable(arm),
+        "scenes": [jsonable(r.to_dict()) for r in records],
+        "extra": jsonable(dict(extra or {})),
+    }
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     tmp.write_text(json.dumps(data))
     tmp.replace(path)
@@ -69,6 +91,7 @@ def load_run(path: Path, key: str) -> list[SceneRecord] | None:
 
     Raises:
         InputError: the file exists with the right name but is not a result file.
+
     """
     if not path.exists():
         return None

@@ -37,7 +37,7 @@ SFM_PIPELINES: dict[str, str] = {"gftt-sfm": "gftt", "surf-sfm": "surf"}
 """SfM pipelines and their `sfm.matcher`."""
 
 PIPELINES: tuple[str, ...] = ("gftt-sfm", "surf-sfm", "lidar", *PAIRS)
-"""Every pipeline `atr eval` knows: the paper's two SfM variants, the LIDAR baseline, the four 2D pairs."""
+"""Every pipeline `atr eval` knows: two SfM variants, the LIDAR baseline, the four 2D pairs."""
 
 DEFAULT_TARGET = "t72"
 
@@ -54,6 +54,7 @@ class Flight:
         noise: noise spec ("none", "shot", "gaussian:10", "gaussian:30").
         target_mesh: mesh file replacing the T-72 (its template is built from the same file).
         clutter_meshes: extra confuser mesh files.
+
     """
 
     scenario: int
@@ -77,6 +78,7 @@ class Arm:
     Attributes:
         pipeline: one of `PIPELINES`.
         descriptor: 3D descriptor (Table III) for the 3D pipelines; the pair's descriptor for the 2D ones.
+
     """
 
     pipeline: str
@@ -87,8 +89,10 @@ class Arm:
             raise ConfigError(f"pipeline {self.pipeline!r} must be one of {PIPELINES}")
         if self.is_2d:
             if self.descriptor != pair_descriptor(self.pipeline):
-                raise ConfigError(f"pipeline {self.pipeline} uses descriptor {pair_descriptor(self.pipeline)!r}, "
-                                  f"not {self.descriptor!r}")
+                raise ConfigError(
+                    f"pipeline {self.pipeline} uses descriptor {pair_descriptor(self.pipeline)!r}, "
+                    f"not {self.descriptor!r}"
+                )
         elif self.descriptor not in DESCRIPTORS:
             raise ConfigError(f"descriptor {self.descriptor!r} must be one of {DESCRIPTORS}")
 
@@ -133,6 +137,7 @@ class SceneRecord:
         stages_ms: per-stage times, milliseconds.
         cloud_points: points in the scene cloud (0 for 2D).
         error: the typed error a stage raised (the services would report it instead of answering).
+
     """
 
     frame: int
@@ -146,35 +151,59 @@ class SceneRecord:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data."""
-        return {"frame": self.frame, "stamp_ns": self.stamp_ns, "truth": self.truth,
-                "detections": self.detections, "time_ms": self.time_ms, "stages_ms": self.stages_ms,
-                "cloud_points": self.cloud_points, "error": self.error}
+        return {
+            "frame": self.frame,
+            "stamp_ns": self.stamp_ns,
+            "truth": self.truth,
+            "detections": self.detections,
+            "time_ms": self.time_ms,
+            "stages_ms": self.stages_ms,
+            "cloud_points": self.cloud_points,
+            "error": self.error,
+        }
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> SceneRecord:
         """Inverse of to_dict."""
-        return cls(**{k: d[k] for k in ("frame", "stamp_ns", "truth", "detections", "time_ms")},
-                   stages_ms=dict(d.get("stages_ms", {})), cloud_points=int(d.get("cloud_points", 0)),
-                   error=d.get("error"))
+        return cls(
+            **{k: d[k] for k in ("frame", "stamp_ns", "truth", "detections", "time_ms")},
+            stages_ms=dict(d.get("stages_ms", {})),
+            cloud_points=int(d.get("cloud_points", 0)),
+            error=d.get("error"),
+        )
 
 
 def truth_of(frame: SensorFrame) -> list[dict[str, Any]]:
     """The frame's truth as SceneRecord.truth."""
-    return [{"name": t.name, "position_m": [float(x) for x in t.T_world_target[:3, 3]],
-             "visible_fraction": float(t.visible_fraction)} for t in frame.targets]
+    return [
+        {
+            "name": t.name,
+            "position_m": [float(x) for x in t.T_world_target[:3, 3]],
+            "visible_fraction": float(t.visible_fraction),
+        }
+        for t in frame.targets
+    ]
 
 
 def detection_dict(target: str, T_world_target: np.ndarray, score: float) -> dict[str, Any]:
     """One detection as SceneRecord.detections holds it."""
-    return {"target": target, "position_m": [float(x) for x in np.asarray(T_world_target)[:3, 3]],
-            "score": float(score)}
+    return {
+        "target": target,
+        "position_m": [float(x) for x in np.asarray(T_world_target)[:3, 3]],
+        "score": float(score),
+    }
 
 
 def initial_nav_state(frame: SensorFrame) -> NavState:
-    """The navigation state the first ImuBatch's `init` carries (true pose and velocity, zero biases)."""
-    return NavState(stamp_ns=frame.stamp_ns, R_world_imu=frame.T_world_imu[:3, :3].copy(),
-                    p_world_m=frame.T_world_imu[:3, 3].copy(), v_world_mps=frame.v_world_imu_mps.copy(),
-                    gyro_bias_radps=np.zeros(3), accel_bias_mps2=np.zeros(3))
+    """Return the state the first ImuBatch's `init` carries (true pose, velocity; zero biases)."""
+    return NavState(
+        stamp_ns=frame.stamp_ns,
+        R_world_imu=frame.T_world_imu[:3, :3].copy(),
+        p_world_m=frame.T_world_imu[:3, 3].copy(),
+        v_world_mps=frame.v_world_imu_mps.copy(),
+        gyro_bias_radps=np.zeros(3),
+        accel_bias_mps2=np.zeros(3),
+    )
 
 
 def flight_frames(flight: Flight, config: AtrConfig, lidar: bool) -> Iterable[SensorFrame]:
@@ -185,25 +214,44 @@ def flight_frames(flight: Flight, config: AtrConfig, lidar: bool) -> Iterable[Se
     clutter = [load_mesh(p) for p in flight.clutter_meshes]
     name = Path(flight.target_mesh).stem if flight.target_mesh else None
     noise = None if flight.noise == "none" else flight.noise
-    return simulate_flight(scenario_preset(flight.scenario, flight.run), seed=flight.seed, frames=flight.frames,
-                           target_mesh=target, clutter_meshes=clutter, lidar=lidar, noise=noise,
-                           config=config.sim, target_name=name)
+    return simulate_flight(
+        scenario_preset(flight.scenario, flight.run),
+        seed=flight.seed,
+        frames=flight.frames,
+        target_mesh=target,
+        clutter_meshes=clutter,
+        lidar=lidar,
+        noise=noise,
+        config=config.sim,
+        target_name=name,
+    )
 
 
-def _recognize(points: np.ndarray, templates: Sequence[Template], config: AtrConfig, seed: int,
-               viewpoint: np.ndarray) -> tuple[list[dict[str, Any]], dict[str, float]]:
+def _recognize(
+    points: np.ndarray,
+    templates: Sequence[Template],
+    config: AtrConfig,
+    seed: int,
+    viewpoint: np.ndarray,
+) -> tuple[list[dict[str, Any]], dict[str, float]]:
     # The cloud crosses the bus as float32 (PointCloud.points_m); the matcher widens it back.
     scene = np.ascontiguousarray(points, np.float32).astype(np.float64)
     result = recognize(scene, list(templates), config.recognition, seed=seed, viewpoint_m=viewpoint)
-    return ([detection_dict(d.target, d.T_world_target, d.score) for d in result.detections],
-            dict(result.stage_times_ms))
+    return (
+        [detection_dict(d.target, d.T_world_target, d.score) for d in result.detections],
+        dict(result.stage_times_ms),
+    )
 
 
-def run_flight(flight: Flight, arms: Sequence[Arm], config: AtrConfig,
-               templates_3d: Mapping[str, Sequence[Template]],
-               templates_2d: Mapping[str, list[Template2d]] | None = None,
-               baseline2d: Baseline2dConfig | None = None,
-               frames: Iterable[SensorFrame] | None = None) -> dict[Arm, list[SceneRecord]]:
+def run_flight(
+    flight: Flight,
+    arms: Sequence[Arm],
+    config: AtrConfig,
+    templates_3d: Mapping[str, Sequence[Template]],
+    templates_2d: Mapping[str, list[Template2d]] | None = None,
+    baseline2d: Baseline2dConfig | None = None,
+    frames: Iterable[SensorFrame] | None = None,
+) -> dict[Arm, list[SceneRecord]]:
     """Run every arm on one flight, simulating it once.
 
     Args:
@@ -220,6 +268,7 @@ def run_flight(flight: Flight, arms: Sequence[Arm], config: AtrConfig,
 
     Raises:
         ConfigError: a 2D arm without templates, or a 3D arm without templates for its descriptor.
+
     """
     b2d = baseline2d or Baseline2dConfig()
     for arm in arms:
@@ -245,49 +294,107 @@ def run_flight(flight: Flight, arms: Sequence[Arm], config: AtrConfig,
         images[k] = frame.image
         if k >= gap:
             truth = truth_of(frame)
-            clouds: dict[str, tuple[Any, float]] = {}  # one reconstruction per matcher, shared by descriptors
+            clouds: dict[
+                str, tuple[Any, float]
+            ] = {}  # one reconstruction per matcher, shared by descriptors
             for arm in arms:
-                records[arm].append(_scene(arm, configs[arm], frame, truth, images, poses, gap,
-                                           templates_3d, templates_2d, b2d, clouds))
+                records[arm].append(
+                    _scene(
+                        arm,
+                        configs[arm],
+                        frame,
+                        truth,
+                        images,
+                        poses,
+                        gap,
+                        templates_3d,
+                        templates_2d,
+                        b2d,
+                        clouds,
+                    )
+                )
         for old in [f for f in images if f <= k - gap]:
             del images[old], poses[old]
     return records
 
 
-def _scene(arm: Arm, config: AtrConfig, frame: SensorFrame, truth: list[dict[str, Any]],
-           images: dict[int, np.ndarray], poses: dict[int, np.ndarray], gap: int,
-           templates_3d: Mapping[str, Sequence[Template]], templates_2d: Mapping[str, list[Template2d]] | None,
-           b2d: Baseline2dConfig, clouds: dict[str, tuple[Any, float]]) -> SceneRecord:
+def _scene(
+    arm: Arm,
+    config: AtrConfig,
+    frame: SensorFrame,
+    truth: list[dict[str, Any]],
+    images: dict[int, np.ndarray],
+    poses: dict[int, np.ndarray],
+    gap: int,
+    templates_3d: Mapping[str, Sequence[Template]],
+    templates_2d: Mapping[str, list[Template2d]] | None,
+    b2d: Baseline2dConfig,
+    clouds: dict[str, tuple[Any, float]],
+) -> SceneRecord:
     k = frame.seq
     t0 = time.perf_counter()
     stages: dict[str, float] = {}
     points = 0
     try:
         if arm.is_2d:
-            result = recognize_2d(frame.image, frame.K, frame.T_world_cam, templates_2d[arm.pipeline],
-                                  arm.pipeline, b2d, seed=k)
-            detections = [detection_dict(d.target, d.T_world_target, d.score) for d in result.detections]
-            stages = {f"2d_{name}": ms for name, ms in result.stage_times_ms.items() if name != "total"}
+            result = recognize_2d(
+                frame.image,
+                frame.K,
+                frame.T_world_cam,
+                templates_2d[arm.pipeline],
+                arm.pipeline,
+                b2d,
+                seed=k,
+            )
+            detections = [
+                detection_dict(d.target, d.T_world_target, d.score) for d in result.detections
+            ]
+            stages = {
+                f"2d_{name}": ms for name, ms in result.stage_times_ms.items() if name != "total"
+            }
         elif arm.pipeline == "lidar":
             points = len(frame.lidar_points_m)
-            detections, rec = _recognize(frame.lidar_points_m, templates_3d[arm.descriptor], config, k,
-                                         frame.T_world_cam[:3, 3].astype(np.float64))
+            detections, rec = _recognize(
+                frame.lidar_points_m,
+                templates_3d[arm.descriptor],
+                config,
+                k,
+                frame.T_world_cam[:3, 3].astype(np.float64),
+            )
             stages = {k_: v for k_, v in rec.items() if k_ != "total"}
         else:
             if config.sfm.matcher not in clouds:
                 t_sfm = time.perf_counter()
-                cloud = reconstruct(images[k - gap], images[k], frame.K, poses[k - gap], poses[k], config.sfm)
+                cloud = reconstruct(
+                    images[k - gap], images[k], frame.K, poses[k - gap], poses[k], config.sfm
+                )
                 clouds[config.sfm.matcher] = (cloud, 1e3 * (time.perf_counter() - t_sfm))
             cloud, sfm_ms = clouds[config.sfm.matcher]
             # the scene's time is its reconstruction (done once, shared by the descriptors) + its matcher
             t0 = time.perf_counter() - sfm_ms / 1e3
-            stages = {f"sfm_{n[5:-2]}": 1e3 * v for n, v in cloud.stats.items()
-                      if n.startswith("time_") and n.endswith("_s")}
+            stages = {
+                f"sfm_{n[5:-2]}": 1e3 * v
+                for n, v in cloud.stats.items()
+                if n.startswith("time_") and n.endswith("_s")
+            }
             points = len(cloud.points_world_m)
-            detections, rec = _recognize(cloud.points_world_m, templates_3d[arm.descriptor], config, k,
-                                         poses[k][:3, 3])
+            detections, rec = _recognize(
+                cloud.points_world_m, templates_3d[arm.descriptor], config, k, poses[k][:3, 3]
+            )
             stages |= {k_: v for k_, v in rec.items() if k_ != "total"}
-    except AtrError as exc:  # the service reports it on .../errors and gives no answer for this frame
-        return SceneRecord(k, frame.stamp_ns, truth, [], 1e3 * (time.perf_counter() - t0), stages, points,
-                           f"{type(exc).__name__}: {exc}")
-    return SceneRecord(k, frame.stamp_ns, truth, detections, 1e3 * (time.perf_counter() - t0), stages, points)
+    except (
+        AtrError
+    ) as exc:  # the service reports it on .../errors and gives no answer for this frame
+        return SceneRecord(
+            k,
+            frame.stamp_ns,
+            truth,
+            [],
+            1e3 * (time.perf_counter() - t0),
+            stages,
+            points,
+            f"{type(exc).__name__}: {exc}",
+        )
+    return SceneRecord(
+        k, frame.stamp_ns, truth, detections, 1e3 * (time.perf_counter() - t0), stages, points
+    )

@@ -1,4 +1,4 @@
-"""Score SceneRecords with the paper's metric (§III-C, `atr.evaluation.metrics`) and summarise a run.
+"""Score SceneRecords with the paper's metric (§III-C, `atr.evaluation.metrics`); summarise runs.
 
 The rules are the demo's (cli/flight_report.py): a scene has the target when the target's visible fraction
 reaches `SimConfig.present_min_visible_fraction`; only detections labelled with the target's name are
@@ -17,21 +17,35 @@ from atr.evaluation.runner import SceneRecord
 from atr.sim.config import SimConfig
 
 
-def score_record(record: SceneRecord, target: str, present_min_visible_fraction: float | None = None,
-                 ) -> SceneScore:
+def score_record(
+    record: SceneRecord,
+    target: str,
+    present_min_visible_fraction: float | None = None,
+) -> SceneScore:
     """Judge one scene.
 
     Args:
         record: the scene's truth and detections.
         target: the target's name.
         present_min_visible_fraction: visibility at which a scene has the target (default: the simulator's).
+
     """
-    present = SimConfig().present_min_visible_fraction if present_min_visible_fraction is None \
+    present = (
+        SimConfig().present_min_visible_fraction
+        if present_min_visible_fraction is None
         else present_min_visible_fraction
-    true_positions = [np.asarray(t["position_m"], np.float64) for t in record.truth
-                      if t["name"] == target and t["visible_fraction"] >= present]
-    hypotheses = sorted((d for d in record.detections if d["target"] == target), key=lambda d: -d["score"])
-    return score_scene(true_positions, [np.asarray(d["position_m"], np.float64) for d in hypotheses])
+    )
+    true_positions = [
+        np.asarray(t["position_m"], np.float64)
+        for t in record.truth
+        if t["name"] == target and t["visible_fraction"] >= present
+    ]
+    hypotheses = sorted(
+        (d for d in record.detections if d["target"] == target), key=lambda d: -d["score"]
+    )
+    return score_scene(
+        true_positions, [np.asarray(d["position_m"], np.float64) for d in hypotheses]
+    )
 
 
 @dataclass(frozen=True)
@@ -47,6 +61,7 @@ class RunSummary:
         scenes: scenes scored.
         scenes_with_target: scenes that have the target.
         errors: scenes where a stage raised a typed error (no answer).
+
     """
 
     counts: Counts
@@ -59,8 +74,9 @@ class RunSummary:
     errors: int
 
 
-def summarise(records: Sequence[SceneRecord], target: str,
-              present_min_visible_fraction: float | None = None) -> RunSummary:
+def summarise(
+    records: Sequence[SceneRecord], target: str, present_min_visible_fraction: float | None = None
+) -> RunSummary:
     """Score every scene of a run and summarise it."""
     scores = [score_record(r, target, present_min_visible_fraction) for r in records]
     t_errors = tuple(float(s.translation_error_m) for s in scores if s.outcome == "tp")
@@ -69,8 +85,12 @@ def summarise(records: Sequence[SceneRecord], target: str,
         counts=count(scores),
         t_errors_m=t_errors,
         t_error_median_m=float(np.median(t_errors)) if t_errors else float("nan"),
-        time_per_scene_ms=float(np.median([r.time_ms for r in records])) if records else float("nan"),
-        stages_ms={n: float(np.median([r.stages_ms.get(n, 0.0) for r in records])) for n in stage_names},
+        time_per_scene_ms=float(np.median([r.time_ms for r in records]))
+        if records
+        else float("nan"),
+        stages_ms={
+            n: float(np.median([r.stages_ms.get(n, 0.0) for r in records])) for n in stage_names
+        },
         scenes=len(records),
         scenes_with_target=sum(s.has_target for s in scores),
         errors=sum(r.error is not None for r in records),

@@ -38,7 +38,9 @@ def textured(shape: tuple[int, int], seed: int) -> np.ndarray:
         c = (int(rng.integers(0, shape[1])), int(rng.integers(0, shape[0])))
         cv2.circle(img, c, int(rng.integers(2, 12)), float(rng.uniform(0.1, 1.0)), -1)
         p = rng.integers(0, [shape[1], shape[0]], size=(2, 2))
-        cv2.rectangle(img, tuple(map(int, p[0])), tuple(map(int, p[1])), float(rng.uniform(0, 1)), 2)
+        cv2.rectangle(
+            img, tuple(map(int, p[0])), tuple(map(int, p[1])), float(rng.uniform(0, 1)), 2
+        )
     img = cv2.GaussianBlur(img, (3, 3), 0.8)
     return np.repeat((255 * img).clip(0, 255).astype(np.uint8)[:, :, None], 3, axis=2)
 
@@ -75,7 +77,9 @@ def test_nothing_found_in_an_unrelated_image(scene_and_view):
     _, view, _ = scene_and_view
     config = Baseline2dConfig()
     templates = describe_templates([view], "2d-1", config)
-    result = recognize_2d(textured((480, 640), 7), K, looking_down(50.0), templates, "2d-1", config, seed=3)
+    result = recognize_2d(
+        textured((480, 640), 7), K, looking_down(50.0), templates, "2d-1", config, seed=3
+    )
     assert result.detections == []
 
 
@@ -103,7 +107,9 @@ def test_viewing_azimuth_in_target_frame():
     T = np.eye(4)
     assert viewing_azimuth_deg(T, [10.0, 0.0, 5.0]) == pytest.approx(0.0)
     assert viewing_azimuth_deg(T, [0.0, 10.0, 5.0]) == pytest.approx(90.0)
-    T[:3, :3] = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # target faces world +y
+    T[:3, :3] = np.array(
+        [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    )  # target faces world +y
     assert viewing_azimuth_deg(T, [0.0, 10.0, 5.0]) == pytest.approx(0.0)
 
 
@@ -118,6 +124,20 @@ def test_bad_inputs():
         Baseline2dConfig(min_inliers=2)
     black = detect_and_describe(np.zeros((100, 100), np.uint8), "2d-4", Baseline2dConfig())
     assert len(black.xy_px) == 0
-    empty = [Template2d(TemplateView("t72", 0.0, 0.0, 0, np.zeros((20, 20, 3), np.uint8), np.zeros(2)), black)]
-    assert recognize_2d(np.zeros((100, 100, 3), np.uint8), K, looking_down(5.0), empty, "2d-4",
-                        Baseline2dConfig(), seed=0).detections == []
+    empty = [
+        Template2d(
+            TemplateView("t72", 0.0, 0.0, 0, np.zeros((20, 20, 3), np.uint8), np.zeros(2)), black
+        )
+    ]
+    assert (
+        recognize_2d(
+            np.zeros((100, 100, 3), np.uint8),
+            K,
+            looking_down(5.0),
+            empty,
+            "2d-4",
+            Baseline2dConfig(),
+            seed=0,
+        ).detections
+        == []
+    )

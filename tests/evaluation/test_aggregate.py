@@ -8,8 +8,20 @@ from atr.evaluation.aggregate import arm_label, compactness, pool, select
 
 
 def row(run, tp, fp, fn, errors, pipeline="gftt-sfm", descriptor="shot", scenes=10, ms=100.0):
-    return {"scenario": 1, "run": run, "pipeline": pipeline, "descriptor": descriptor, "tp": tp, "fp": fp,
-            "fn": fn, "tn": 0, "scenes": scenes, "t_errors_m": errors, "time_per_scene_ms": ms, "noise": "none"}
+    return {
+        "scenario": 1,
+        "run": run,
+        "pipeline": pipeline,
+        "descriptor": descriptor,
+        "tp": tp,
+        "fp": fp,
+        "fn": fn,
+        "tn": 0,
+        "scenes": scenes,
+        "t_errors_m": errors,
+        "time_per_scene_ms": ms,
+        "noise": "none",
+    }
 
 
 def test_pool_sums_counts_before_f1():
@@ -21,8 +33,11 @@ def test_pool_sums_counts_before_f1():
 
 
 def test_pool_time_weighted_by_scenes_and_groups_by_key():
-    rows = [row(1, 1, 0, 0, [0.2], scenes=1, ms=100.0), row(2, 1, 0, 0, [0.4], scenes=3, ms=200.0),
-            row(1, 0, 1, 0, [], pipeline="lidar")]
+    rows = [
+        row(1, 1, 0, 0, [0.2], scenes=1, ms=100.0),
+        row(2, 1, 0, 0, [0.4], scenes=3, ms=200.0),
+        row(1, 0, 1, 0, [], pipeline="lidar"),
+    ]
     pooled = pool(rows, arm_label)
     assert set(pooled) == {"gftt-sfm/shot", "lidar/shot"}
     assert math.isclose(pooled["gftt-sfm/shot"]["time_per_scene_ms"], 175.0)

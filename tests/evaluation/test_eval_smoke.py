@@ -11,15 +11,40 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-CONTRACT = {"scenario", "run", "pipeline", "descriptor", "noise", "tp", "fp", "fn", "f1", "t_error_median_m",
-            "time_per_scene_ms", "scenes"}
-SMALL = ["--set", "sim.width_px=640", "--set", "sim.height_px=480", "--set", "sim.focal_px=1000",
-         "--set", "pipeline.targets=[t72]"]
+CONTRACT = {
+    "scenario",
+    "run",
+    "pipeline",
+    "descriptor",
+    "noise",
+    "tp",
+    "fp",
+    "fn",
+    "f1",
+    "t_error_median_m",
+    "time_per_scene_ms",
+    "scenes",
+}
+SMALL = [
+    "--set",
+    "sim.width_px=640",
+    "--set",
+    "sim.height_px=480",
+    "--set",
+    "sim.focal_px=1000",
+    "--set",
+    "pipeline.targets=[t72]",
+]
 
 
 def atr(*args: str) -> subprocess.CompletedProcess[str]:
-    result = subprocess.run([sys.executable, "-m", "cli.main", *args], cwd=REPO, capture_output=True, text=True,
-                            timeout=600)
+    result = subprocess.run(
+        [sys.executable, "-m", "cli.main", *args],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     return result
 
@@ -27,8 +52,24 @@ def atr(*args: str) -> subprocess.CompletedProcess[str]:
 @pytest.fixture(scope="module")
 def evaluated(tmp_path_factory):
     root = tmp_path_factory.mktemp("eval")
-    args = ["eval", "--scenario", "1", "--run", "3", "--frames", "2", "--pipeline", "gftt-sfm",
-            "--descriptor", "shot", *SMALL, "--results", str(root / "results"), "--json", str(root / "out.json")]
+    args = [
+        "eval",
+        "--scenario",
+        "1",
+        "--run",
+        "3",
+        "--frames",
+        "2",
+        "--pipeline",
+        "gftt-sfm",
+        "--descriptor",
+        "shot",
+        *SMALL,
+        "--results",
+        str(root / "results"),
+        "--json",
+        str(root / "out.json"),
+    ]
     first = atr(*args)
     second = atr(*args)
     return root, args, first, second
@@ -40,8 +81,13 @@ def test_json_is_the_contract(evaluated):
     assert list(data) == ["results"] and len(data["results"]) == 1
     row = data["results"][0]
     assert set(row) == CONTRACT
-    assert (row["scenario"], row["run"], row["pipeline"], row["descriptor"], row["noise"]) == (1, 3, "gftt-sfm",
-                                                                                                "shot", "none")
+    assert (row["scenario"], row["run"], row["pipeline"], row["descriptor"], row["noise"]) == (
+        1,
+        3,
+        "gftt-sfm",
+        "shot",
+        "none",
+    )
     assert row["scenes"] == 1 and row["tp"] + row["fp"] + row["fn"] <= 1
     if row["tp"] + row["fp"] + row["fn"]:
         assert row["f1"] == pytest.approx(2 * row["tp"] / (2 * row["tp"] + row["fp"] + row["fn"]))
@@ -55,8 +101,10 @@ def test_results_folder_and_resume(evaluated):
     assert config["atr"]["sim"]["width_px"] == 640 and config["code_version"]
     assert "0 current results reused" in first.stderr
     assert "1 current results reused" in second.stderr
-    assert json.loads((latest / "results.json").read_text())["results"] == json.loads(
-        (root / "out.json").read_text())["results"]
+    assert (
+        json.loads((latest / "results.json").read_text())["results"]
+        == json.loads((root / "out.json").read_text())["results"]
+    )
 
 
 def test_report_from_the_result(evaluated, tmp_path):

@@ -42,8 +42,12 @@ def test_other_vehicle_names_are_not_hypotheses_and_best_score_is_judged():
 
 
 def test_summary_f1_and_median_error():
-    records = [record(TRUTH, [hyp(10.5, 5.0)], 5.0), record(TRUTH, [hyp(11.0, 5.0)], 7.0),
-               record(TRUTH, []), record(HIDDEN, [hyp(0.0, 0.0)], 9.0)]
+    records = [
+        record(TRUTH, [hyp(10.5, 5.0)], 5.0),
+        record(TRUTH, [hyp(11.0, 5.0)], 7.0),
+        record(TRUTH, []),
+        record(HIDDEN, [hyp(0.0, 0.0)], 9.0),
+    ]
     s = summarise(records, "t72")
     assert (s.counts.tp, s.counts.fp, s.counts.fn) == (2, 1, 1)
     assert math.isclose(s.counts.f1, 4 / 6)  # eq. (5): 2TP / (2TP + FP + FN)
