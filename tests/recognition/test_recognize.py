@@ -150,5 +150,6 @@ def test_two_million_points_bounded(small_template):
     pts = np.c_[rng.uniform(-20, 20, (2_000_000, 2)), rng.normal(0, 0.005, 2_000_000)]
     res = recognize(pts, [tpl], cfg, seed=0)
     assert res.stats["subsampled_points"] < 40_000  # (40 m / 0.3 m)^2 voxels, two layers of noise
-    assert res.stats["keypoints"] <= cfg.max_scene_keypoints
+    # A flat plane may lose every point to ground removal before keypoints are counted.
+    assert res.stats.get("keypoints", 0) <= cfg.max_scene_keypoints
     assert all(d.target == "car" for d in res.detections)
