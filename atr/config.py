@@ -19,6 +19,7 @@ from typing import Any, Literal
 import yaml
 
 from atr.errors import ConfigError
+from atr.baselines2d.config import Baseline2dConfig
 from atr.imu.config import ImuConfig
 from atr.recognition.config import RecognitionConfig
 from atr.sfm.config import SfmConfig
@@ -60,6 +61,7 @@ class AtrConfig:
     imu: ImuConfig = field(default_factory=lambda: ImuConfig(T_imu_cam=SimConfig().T_imu_cam))
     sfm: SfmConfig = field(default_factory=SfmConfig)
     recognition: RecognitionConfig = field(default_factory=RecognitionConfig)
+    baselines2d: Baseline2dConfig = field(default_factory=Baseline2dConfig)
 
 
 def _coerce(value: Any, annotation: Any, where: str) -> Any:

@@ -162,7 +162,6 @@ def _arms(args: argparse.Namespace, config: Any) -> list[Any]:
 
 def plan(args: argparse.Namespace) -> Plan:
     """Resolve the configuration, flights and arms of an invocation."""
-    from atr.baselines2d import Baseline2dConfig  # noqa: PLC0415
     from atr.config import load_config  # noqa: PLC0415
     from atr.evaluation.io import code_version  # noqa: PLC0415
 
@@ -179,7 +178,7 @@ def plan(args: argparse.Namespace) -> Plan:
         _arms(args, config),
         code_version(),
         args.results,
-        Baseline2dConfig(),
+        config.baselines2d,
     )
 
 
@@ -210,7 +209,7 @@ def _key(plan_: Plan, flight: Any, arm: Any, via_services: bool) -> str:
 def _templates_3d(plan_: Plan) -> None:
     """Build the templates of every target per descriptor, exactly as template_store serves them."""
     from atr.evaluation.runner import arm_config  # noqa: PLC0415
-    from services.atr_matcher.main import _template  # noqa: PLC0415
+    from services.atr_matcher.main import template_from_message  # noqa: PLC0415
     from services.template_store.main import TemplateStore  # noqa: PLC0415
 
     for arm in plan_.arms:
@@ -218,7 +217,7 @@ def _templates_3d(plan_: Plan) -> None:
             continue
         config = arm_config(plan_.config, arm)
         store = TemplateStore(config, REPO / "templates")
-        templates = [_template(store.message(name, arm.descriptor)) for name in store.meshes]
+        templates = [template_from_message(store.message(name, arm.descriptor)) for name in store.meshes]
         plan_.templates_3d[arm.descriptor] = templates
         target = next((t for t in templates if t.target == plan_.flights[0].target), templates[0])
         kb = (target.descriptors.nbytes + target.keypoints_m.nbytes) / 1024

@@ -20,7 +20,8 @@ from bus import keys
 from bus.service import effective_config, service_arguments, start_node
 
 
-def _template(message: dict) -> Template:
+def template_from_message(message: dict) -> Template:
+    """The Template a Template message describes (what template_store serves), as the matcher uses it."""
     return Template.from_dict(message | {"params": message.get("params", {}) | {"resolution_m": message["resolution_m"]}})
 
 
@@ -42,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
             with node.handling(message):
                 if not templates:  # a failed fetch is reported for this cloud and retried on the next
                     templates = [
-                        _template(node.get(keys.template(t, recognition.descriptor), pipeline.template_timeout_s))
+                        template_from_message(node.get(keys.template(t, recognition.descriptor), pipeline.template_timeout_s))
                         for t in targets
                     ]
                 cloud = message.data
