@@ -18,8 +18,8 @@ from typing import Any, Literal
 
 import yaml
 
-from atr.errors import ConfigError
 from atr.baselines2d.config import Baseline2dConfig
+from atr.errors import ConfigError
 from atr.imu.config import ImuConfig
 from atr.recognition.config import RecognitionConfig
 from atr.sfm.config import SfmConfig
@@ -37,6 +37,7 @@ class PipelineConfig:
             named after its file stem.
         cloud_source: which cloud the matcher reads: "sfm" (the paper's pipeline) or "lidar" (the baseline).
         template_timeout_s: how long the matcher waits for a template query before reporting an error.
+
     """
 
     targets: tuple[str, ...] = ("t72", "ifv", "truck6x6")
@@ -46,7 +47,9 @@ class PipelineConfig:
 
     def __post_init__(self) -> None:
         if not self.targets and not self.target_meshes:
-            raise ConfigError("pipeline.targets and pipeline.target_meshes are both empty: nothing to recognise")
+            raise ConfigError(
+                "pipeline.targets and pipeline.target_meshes are both empty: nothing to recognise"
+            )
         if self.template_timeout_s <= 0:
             raise ConfigError(f"pipeline.template_timeout_s {self.template_timeout_s} must be > 0")
 
@@ -120,6 +123,7 @@ def apply_overrides(config: Any, overrides: list[str] | dict[str, Any]) -> Any:
 
     Raises:
         ConfigError: unknown field, value of the wrong type, or a value its group's validation refuses.
+
     """
     items = overrides.items() if isinstance(overrides, dict) else [_split(o) for o in overrides]
     for dotted, value in items:
@@ -142,6 +146,7 @@ def load_config(path: str | Path | None = None, overrides: list[str] | None = No
 
     Raises:
         ConfigError: unreadable file or invalid value.
+
     """
     config = AtrConfig()
     if path is not None:

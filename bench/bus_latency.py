@@ -43,7 +43,12 @@ def free_port() -> int:
 
 
 def bus_env(hub: str) -> dict[str, str]:
-    env = dict(os.environ, ATR_ZENOH_CONNECT=hub, ATR_ZENOH_LISTEN="tcp/127.0.0.1:0", ATR_LOG_LEVEL="WARNING")
+    env = dict(
+        os.environ,
+        ATR_ZENOH_CONNECT=hub,
+        ATR_ZENOH_LISTEN="tcp/127.0.0.1:0",
+        ATR_LOG_LEVEL="WARNING",
+    )
     env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
     env.pop("ATR_ZENOH_CONFIG", None)
     return env
@@ -56,7 +61,8 @@ def start_hub() -> tuple[subprocess.Popen[bytes], str]:
     hub = f"tcp/127.0.0.1:{port}"
     proc = subprocess.Popen(
         [sys.executable, "-m", "cli.main", "service", "router", "--mode", "peer", "--listen", hub],
-        env=bus_env(hub), cwd=REPO,
+        env=bus_env(hub),
+        cwd=REPO,
     )
     deadline = time.monotonic() + 20
     while time.monotonic() < deadline:
@@ -70,14 +76,24 @@ def start_hub() -> tuple[subprocess.Popen[bytes], str]:
 
 def imu_message(n: int = 16) -> dict:
     rng = np.random.default_rng(1)
-    return {"stamp_ns": 0, "frame_seq": 0, "t_ns": np.arange(n, dtype=np.int64),
-            "gyro_radps": rng.normal(size=(n, 3)), "accel_mps2": rng.normal(size=(n, 3))}
+    return {
+        "stamp_ns": 0,
+        "frame_seq": 0,
+        "t_ns": np.arange(n, dtype=np.int64),
+        "gyro_radps": rng.normal(size=(n, 3)),
+        "accel_mps2": rng.normal(size=(n, 3)),
+    }
 
 
 def image_message() -> dict:
     rng = np.random.default_rng(2)
-    return {"stamp_ns": 0, "frame_seq": 0, "encoding": "rgb8",
-            "data": rng.integers(0, 256, (960, 1280, 3), dtype=np.uint8), "K": np.eye(3)}
+    return {
+        "stamp_ns": 0,
+        "frame_seq": 0,
+        "encoding": "rgb8",
+        "data": rng.integers(0, 256, (960, 1280, 3), dtype=np.uint8),
+        "K": np.eye(3),
+    }
 
 
 def receiver() -> int:
@@ -130,8 +146,13 @@ def main() -> int:
     from bus.session import default_config
 
     hub_proc, hub = start_hub()
-    rx = subprocess.Popen([sys.executable, __file__, "--role", "receiver"], env=bus_env(hub), cwd=REPO,
-                          stdout=subprocess.PIPE, text=True)
+    rx = subprocess.Popen(
+        [sys.executable, __file__, "--role", "receiver"],
+        env=bus_env(hub),
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert rx.stdout is not None and rx.stdout.readline().strip() == "ready"
         config = default_config("peer", connect=[hub], listen=["tcp/127.0.0.1:0"])
@@ -169,24 +190,33 @@ def main() -> int:
         key, _, value = line.partition(" ")
         if value:
             per_key.setdefault(key, []).append(int(value))
-    print(f"\nload average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; {args.rounds} rounds")
+    print(
+        f"\nload average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; {args.rounds} rounds"
+    )
     print(f"{'size':<8} {'path':<5} {'n':>5} {'p50 ms':>8} {'p99 ms':>8}   (median over rounds)")
     figures = {}
     for label, (node_key, raw_key, count, _) in SIZES.items():
         for path, key in (("raw", raw_key), ("node", node_key)):
             values = per_key.get(key, [])
-            rounds = [values[i * count:(i + 1) * count] for i in range(args.rounds)]
+            rounds = [values[i * count : (i + 1) * count] for i in range(args.rounds)]
             rounds = [v for v in rounds if v]
             p50 = statistics.median(float(np.percentile(v, 50)) for v in rounds) / 1e6
             p99 = statistics.median(float(np.percentile(v, 99)) for v in rounds) / 1e6
             figures[(label, path)] = (p50, p99)
             lost = count * args.rounds - len(values)
-            print(f"{label:<8} {path:<5} {len(values):>5} {p50:>8.2f} {p99:>8.2f}" + (f"   LOST {lost}" if lost else ""))
+            print(
+                f"{label:<8} {path:<5} {len(values):>5} {p50:>8.2f} {p99:>8.2f}"
+                + (f"   LOST {lost}" if lost else "")
+            )
         values = per_key.get(node_key + "#callback", [])
         if values:
-            print(f"{label:<8} node: send -> Zenoh callback p50 {np.percentile(values, 50) / 1e6:.2f} ms "
-                  f"(validate + encode + transport); the rest is queue hop + decode + validate")
-        print(f"{label:<8} node: Node.publish call (validate + encode + put) median {statistics.median(publish_ms[label]):.2f} ms")
+            print(
+                f"{label:<8} node: send -> Zenoh callback p50 {np.percentile(values, 50) / 1e6:.2f} ms "
+                f"(validate + encode + transport); the rest is queue hop + decode + validate"
+            )
+        print(
+            f"{label:<8} node: Node.publish call (validate + encode + put) median {statistics.median(publish_ms[label]):.2f} ms"
+        )
         (r50, r99), (n50, n99) = figures[(label, "raw")], figures[(label, "node")]
         print(f"{label:<8} node/raw: p50 x{n50 / r50:.2f}, p99 x{n99 / r99:.2f}")
     print(json.dumps({f"{k[0]} {k[1]}": v for k, v in figures.items()}))

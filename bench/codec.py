@@ -30,7 +30,9 @@ def camera_image(rng: np.random.Generator) -> np.ndarray:
     """A 1280x960 RGB frame with smooth texture and sensor noise (compresses like a real frame, not
     like noise)."""
     y, x = np.mgrid[0:960, 0:1280].astype(np.float32)
-    base = np.stack([(x * 0.2 + y * 0.1) % 256, 128 + 60 * np.sin(x / 40), 128 + 60 * np.cos(y / 30)], -1)
+    base = np.stack(
+        [(x * 0.2 + y * 0.1) % 256, 128 + 60 * np.sin(x / 40), 128 + 60 * np.cos(y / 30)], -1
+    )
     return np.clip(base + rng.normal(0, 3, base.shape), 0, 255).astype(np.uint8)
 
 
@@ -38,19 +40,41 @@ def messages(rng: np.random.Generator) -> dict[str, tuple[str, dict]]:
     """Typical messages of the load described in docs/performance/bus.md."""
     n = 200
     return {
-        "Image 1280x960 rgb8": ("Image", {
-            "stamp_ns": 1, "seq": 0, "version": 1, "frame_seq": 0, "encoding": "rgb8",
-            "data": camera_image(rng), "K": np.eye(3),
-        }),
-        "PointCloud 20k float32": ("PointCloud", {
-            "stamp_ns": 1, "seq": 0, "version": 1, "source": "lidar", "frame_seqs": [0],
-            "points_m": rng.normal(size=(20_000, 3)).astype(np.float32),
-        }),
-        "ImuBatch 200 samples": ("ImuBatch", {
-            "stamp_ns": 1, "seq": 0, "version": 1, "frame_seq": 0,
-            "t_ns": np.arange(n, dtype=np.int64) * 5_000_000,
-            "gyro_radps": rng.normal(size=(n, 3)), "accel_mps2": rng.normal(size=(n, 3)),
-        }),
+        "Image 1280x960 rgb8": (
+            "Image",
+            {
+                "stamp_ns": 1,
+                "seq": 0,
+                "version": 1,
+                "frame_seq": 0,
+                "encoding": "rgb8",
+                "data": camera_image(rng),
+                "K": np.eye(3),
+            },
+        ),
+        "PointCloud 20k float32": (
+            "PointCloud",
+            {
+                "stamp_ns": 1,
+                "seq": 0,
+                "version": 1,
+                "source": "lidar",
+                "frame_seqs": [0],
+                "points_m": rng.normal(size=(20_000, 3)).astype(np.float32),
+            },
+        ),
+        "ImuBatch 200 samples": (
+            "ImuBatch",
+            {
+                "stamp_ns": 1,
+                "seq": 0,
+                "version": 1,
+                "frame_seq": 0,
+                "t_ns": np.arange(n, dtype=np.int64) * 5_000_000,
+                "gyro_radps": rng.normal(size=(n, 3)),
+                "accel_mps2": rng.normal(size=(n, 3)),
+            },
+        ),
     }
 
 
@@ -66,8 +90,10 @@ def median_s(fn: Callable[[], object], repeats: int = REPEATS) -> float:
 
 def main() -> None:
     rng = np.random.default_rng(0)
-    print(f"{'message':<24} {'bytes':>9} {'encode MB/s':>12} {'decode MB/s':>12} {'copy MB/s':>10} "
-          f"{'enc/copy':>9} {'dec/copy':>9}")
+    print(
+        f"{'message':<24} {'bytes':>9} {'encode MB/s':>12} {'decode MB/s':>12} {'copy MB/s':>10} "
+        f"{'enc/copy':>9} {'dec/copy':>9}"
+    )
     encoded = {}
     for label, (type_name, message) in messages(rng).items():
         payload = codec.encode(type_name, message)
@@ -77,19 +103,27 @@ def main() -> None:
         t_dec = median_s(lambda: codec.decode(type_name, payload))
         view = memoryview(payload)
         t_copy = median_s(lambda: bytes(view))
-        print(f"{label:<24} {len(payload):>9} {mb / t_enc:>12.0f} {mb / t_dec:>12.0f} {mb / t_copy:>10.0f} "
-              f"{t_enc / t_copy:>9.1f} {t_dec / t_copy:>9.1f}")
+        print(
+            f"{label:<24} {len(payload):>9} {mb / t_enc:>12.0f} {mb / t_dec:>12.0f} {mb / t_copy:>10.0f} "
+            f"{t_enc / t_copy:>9.1f} {t_dec / t_copy:>9.1f}"
+        )
     # validation share of decode for the image
     image = codec.unpack(encoded["Image 1280x960 rgb8"])
     t_val = median_s(lambda: schemas.validate("Image", image))
     print(f"schema validation of a decoded Image: {t_val * 1e3:.2f} ms")
 
-    print("\nChunkedWriter (recorder), 30 frames of the 2x load mix (per frame: 2 images, 2 clouds, 14 IMU):")
-    frame = [encoded["Image 1280x960 rgb8"]] * 2 + [encoded["PointCloud 20k float32"]] * 2 + \
-        [encoded["ImuBatch 200 samples"][:600]] * 14
+    print(
+        "\nChunkedWriter (recorder), 30 frames of the 2x load mix (per frame: 2 images, 2 clouds, 14 IMU):"
+    )
+    frame = (
+        [encoded["Image 1280x960 rgb8"]] * 2
+        + [encoded["PointCloud 20k float32"]] * 2
+        + [encoded["ImuBatch 200 samples"][:600]] * 14
+    )
     total = sum(map(len, frame)) * 30
     path = Path(tempfile.mkdtemp()) / "bench.mcap"
     for level, background in ((1, False), (1, True), (3, True), (-1, True)):
+
         def write(level: int = level, background: bool = background) -> int:
             w = ChunkedWriter(path, zstd_level=level, background=background)
             cid = w.add_channel("t", "msgpack", 0)
@@ -98,9 +132,12 @@ def main() -> None:
                     w.add_message(cid, i * 100 + j, i, i, data)
             w.close()
             return path.stat().st_size
+
         size = write()
         t = median_s(write, repeats=3)
-        print(f"  zstd level {level:>2}, background={background!s:<5}: {total / t / 1e6:6.0f} MB/s, file/raw = {size / total:.2f}")
+        print(
+            f"  zstd level {level:>2}, background={background!s:<5}: {total / t / 1e6:6.0f} MB/s, file/raw = {size / total:.2f}"
+        )
 
 
 if __name__ == "__main__":

@@ -28,7 +28,12 @@ def bumpy_sphere(n: int, seed: int) -> np.ndarray:
     u = rng.normal(size=(n, 3))
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     theta, phi = np.arccos(u[:, 2]), np.arctan2(u[:, 1], u[:, 0])
-    r = 1.0 + 0.18 * np.sin(3 * theta) * np.cos(2 * phi) + 0.1 * np.cos(5 * theta + phi) + 0.06 * np.sin(7 * phi)
+    r = (
+        1.0
+        + 0.18 * np.sin(3 * theta) * np.cos(2 * phi)
+        + 0.1 * np.cos(5 * theta + phi)
+        + 0.06 * np.sin(7 * phi)
+    )
     return u * r[:, None]
 
 
@@ -74,7 +79,9 @@ def open3d_fpfh(points: np.ndarray, normals: np.ndarray, keypoints: np.ndarray, 
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--runs", type=int, default=7)
     ap.add_argument("--points", type=int, default=10_000)
     ap.add_argument("--keypoints", type=int, default=1_000)
@@ -90,13 +97,17 @@ def main() -> None:
     from atr.features3d._neighbours import RadiusSearch
 
     nb = RadiusSearch(pts, radius).count(pts[kp]).mean()
-    print(f"cloud {args.points} pts, resolution {res * 1000:.1f} mm, radius {radius * 1000:.1f} mm (5x), "
-          f"~{nb:.0f} neighbours/keypoint, {args.keypoints} keypoints, NUMBA_NUM_THREADS="
-          f"{os.environ['NUMBA_NUM_THREADS']}")
+    print(
+        f"cloud {args.points} pts, resolution {res * 1000:.1f} mm, radius {radius * 1000:.1f} mm (5x), "
+        f"~{nb:.0f} neighbours/keypoint, {args.keypoints} keypoints, NUMBA_NUM_THREADS="
+        f"{os.environ['NUMBA_NUM_THREADS']}"
+    )
     print(f"normals (k=6, all points, first call): {t_normals * 1000:.1f} ms")
     t_n = time_call(lambda: estimate_normals(pts, k=6), args.runs)
     print(f"normals median: {t_n[1] * 1000:.1f} ms wall, {t_n[2] * 1000:.1f} ms CPU\n")
-    print("| descriptor | length | first call in process (ms) | median wall (ms) | median CPU (ms) | CPU <= 100 ms |")
+    print(
+        "| descriptor | length | first call in process (ms) | median wall (ms) | median CPU (ms) | CPU <= 100 ms |"
+    )
     print("|---|---|---|---|---|---|")
     for name in DESCRIPTOR_NAMES:
         if not is_available(name):
@@ -105,10 +116,14 @@ def main() -> None:
         fn = lambda name=name: describe(name, pts, normals, kp, radius)  # noqa: E731
         first, med, cpu = time_call(fn, args.runs)
         length = fn().shape[1]
-        print(f"| {name} | {length} | {first * 1000:.1f} | {med * 1000:.1f} | {cpu * 1000:.1f} | "
-              f"{'yes' if cpu <= 0.1 else 'NO'} |")
+        print(
+            f"| {name} | {length} | {first * 1000:.1f} | {med * 1000:.1f} | {cpu * 1000:.1f} | "
+            f"{'yes' if cpu <= 0.1 else 'NO'} |"
+        )
     _, o3d_med, o3d_cpu = time_call(lambda: open3d_fpfh(pts, normals, kp, radius), args.runs)
-    print(f"| Open3D FPFH (C++, reference) | 33 | - | {o3d_med * 1000:.1f} | {o3d_cpu * 1000:.1f} | - |")
+    print(
+        f"| Open3D FPFH (C++, reference) | 33 | - | {o3d_med * 1000:.1f} | {o3d_cpu * 1000:.1f} | - |"
+    )
 
     # The FPFH goal of the issue: 2,000 keypoints on 20,000 points against Open3D on the same input.
     if is_available("fpfh"):
@@ -118,8 +133,10 @@ def main() -> None:
         kp2 = np.random.default_rng(4).choice(len(pts2), 2_000, replace=False)
         _, _, ours = time_call(lambda: describe("fpfh", pts2, n2, kp2, r2), args.runs)
         _, _, ref = time_call(lambda: open3d_fpfh(pts2, n2, kp2, r2), args.runs)
-        print(f"\nFPFH 2,000 keypoints / 20,000 points (CPU): ours {ours * 1000:.1f} ms, Open3D "
-              f"{ref * 1000:.1f} ms, ratio {ours / ref:.2f} (goal <= 1.5)")
+        print(
+            f"\nFPFH 2,000 keypoints / 20,000 points (CPU): ours {ours * 1000:.1f} ms, Open3D "
+            f"{ref * 1000:.1f} ms, ratio {ours / ref:.2f} (goal <= 1.5)"
+        )
 
 
 if __name__ == "__main__":

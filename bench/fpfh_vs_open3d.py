@@ -83,7 +83,9 @@ def main() -> None:
         ("hod-s", lambda: hod(pts, kps, radius, short=True)),
     ]:
         f()
-        print(f"{name}: 1000 kp / 10000 pts, radius {radius:.4f} m, one core: {median_ms(f):.1f} ms")
+        print(
+            f"{name}: 1000 kp / 10000 pts, radius {radius:.4f} m, one core: {median_ms(f):.1f} ms"
+        )
 
 
 if __name__ == "__main__":

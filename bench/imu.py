@@ -95,8 +95,10 @@ def bench_timing() -> None:
             lambda: _scipy_loop(s0, t, gyro, accel, gw), REPEATS // 10),
     }  # fmt: skip
     ref = results["reference: scipy Rotation loop"]
-    print(f"# {N_SAMPLES}-sample batch at 200 Hz, median of {REPEATS} runs "
-          f"(reference {REPEATS // 10})")
+    print(
+        f"# {N_SAMPLES}-sample batch at 200 Hz, median of {REPEATS} runs "
+        f"(reference {REPEATS // 10})"
+    )
     print("| path | median us | vs scipy loop |")
     print("|---|---:|---:|")
     for name, us in results.items():
@@ -105,8 +107,10 @@ def bench_timing() -> None:
     R_ref, p_ref, _ = _scipy_loop(s0, t, gyro, accel, gw)
     s1 = integrate(s0, t, gyro, accel, config=cfg)
     dR = Rotation.from_matrix(R_ref.T @ s1.R_world_imu).magnitude()
-    print(f"kernel vs reference after {N_SAMPLES} samples: {np.degrees(dR):.2e} deg, "
-          f"{np.linalg.norm(p_ref - s1.p_world_m):.2e} m (coning term only)")
+    print(
+        f"kernel vs reference after {N_SAMPLES} samples: {np.degrees(dR):.2e} deg, "
+        f"{np.linalg.norm(p_ref - s1.p_world_m):.2e} m (coning term only)"
+    )
 
 
 def bench_accuracy() -> None:
@@ -126,8 +130,10 @@ def bench_accuracy() -> None:
     ge = ground_truth_errors(*args, int(gt.t_ns[int(np.argmax(moved)) - 1]))
     print(f"\nground truth at rest: {ge}")
     starts = np.nonzero(np.linalg.norm(gt.v_world_mps, axis=1) > 0.2)[0][::5]
-    print("| mode | window s | n | rot median / p90 / max deg | trans median / p90 / max m "
-          "| bound rot deg | bound trans m | GT distance median m |")
+    print(
+        "| mode | window s | n | rot median / p90 / max deg | trans median / p90 / max m "
+        "| bound rot deg | bound trans m | GT distance median m |"
+    )
     print("|---|---:|---:|---|---|---:|---:|---:|")
     for mode in ("strapdown", "paper"):
         for w in (0.05, 0.5, 1.0):
@@ -137,9 +143,11 @@ def bench_accuracy() -> None:
                                  cfg.gravity_mps2)  # fmt: skip
             r = np.degrees(np.percentile(e.rotation_error_rad, [50, 90, 100]))
             tr = np.percentile(e.translation_error_m, [50, 90, 100])
-            print(f"| {mode} | {w} | {len(e.start_ns)} | {r[0]:.4f} / {r[1]:.4f} / {r[2]:.4f} "
-                  f"| {tr[0]:.4f} / {tr[1]:.4f} / {tr[2]:.4f} | {np.degrees(rb):.4f} | {tb:.4f} "
-                  f"| {np.median(e.gt_distance_m):.3f} |")
+            print(
+                f"| {mode} | {w} | {len(e.start_ns)} | {r[0]:.4f} / {r[1]:.4f} / {r[2]:.4f} "
+                f"| {tr[0]:.4f} / {tr[1]:.4f} / {tr[2]:.4f} | {np.degrees(rb):.4f} | {tb:.4f} "
+                f"| {np.median(e.gt_distance_m):.3f} |"
+            )
 
 
 def main() -> None:

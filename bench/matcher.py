@@ -42,16 +42,22 @@ def _clouds(mesh) -> dict[str, np.ndarray]:
     # SfM-like: sparse, noisy, concentrated around the target (GFTT/KLT ~10k points, paper §III-D-3).
     sfm = syn.aerial_scene(veh, seed=1, extent_m=15, n_clutter=3, samples_per_m2=12, noise_m=0.1)
     # LIDAR-like: dense and wide (~260k points).
-    lidar = syn.aerial_scene(veh, seed=2, extent_m=45, n_clutter=20, samples_per_m2=45, noise_m=0.03)
+    lidar = syn.aerial_scene(
+        veh, seed=2, extent_m=45, n_clutter=20, samples_per_m2=45, noise_m=0.03
+    )
     return {"sfm": sfm, "lidar": lidar}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=3)
-    ap.add_argument("--descriptors", nargs="+", default=["hod-s", "hod", "fpfh", "shot", "rops", "usc", "3dsc"])
+    ap.add_argument(
+        "--descriptors", nargs="+", default=["hod-s", "hod", "fpfh", "shot", "rops", "usc", "3dsc"]
+    )
     ap.add_argument("--clouds", nargs="+", default=["sfm", "lidar"])
-    ap.add_argument("--scene", default="", help="a tuning-set .npz (bench/tune_recognition.py make)")
+    ap.add_argument(
+        "--scene", default="", help="a tuning-set .npz (bench/tune_recognition.py make)"
+    )
     ap.add_argument("--targets", nargs="+", default=["t72"])
     args = ap.parse_args()
     from atr.sim.vehicles import VEHICLES, t72
@@ -71,7 +77,11 @@ def main() -> None:
         clouds = _clouds(mesh)
     ref = _reference_ms()
     print(f"reference (sort of 1M float64): {ref:.1f} ms")
-    print("cloud  points  descriptor " + " ".join(f"{s:>9}" for s in STAGES) + "     total  x ref  found")
+    print(
+        "cloud  points  descriptor "
+        + " ".join(f"{s:>9}" for s in STAGES)
+        + "     total  x ref  found"
+    )
     for name in args.clouds:
         pts = clouds[name]
         for desc in args.descriptors:
@@ -80,18 +90,30 @@ def main() -> None:
                 continue
             cfg = RecognitionConfig(descriptor=desc)
             try:
-                tpls = [build_template(VEHICLES[t]().vertices, VEHICLES[t]().triangles, t, desc, cfg)
-                        for t in args.targets]
+                tpls = [
+                    build_template(VEHICLES[t]().vertices, VEHICLES[t]().triangles, t, desc, cfg)
+                    for t in args.targets
+                ]
             except Exception as exc:  # noqa: BLE001 - a missing descriptor must not stop the bench
                 print(f"{name:5} {len(pts):7d}  {desc:10} failed: {exc}")
                 continue
             recognize(pts, tpls, cfg, seed=0, viewpoint_m=viewpoint)  # warm-up (JIT)
-            runs = [recognize(pts, tpls, cfg, seed=0, viewpoint_m=viewpoint) for _ in range(args.runs)]
-            med = {s: statistics.median(r.stage_times_ms[s] for r in runs) for s in (*STAGES, "total")}
-            found = any(d.target == "t72" and np.linalg.norm(d.T_world_target[:2, 3] - truth_xy) < 2
-                        for d in runs[0].detections)
-            print(f"{name:5} {len(pts):7d}  {desc:10} " + " ".join(f"{med[s]:9.1f}" for s in STAGES)
-                  + f" {med['total']:9.1f} {med['total'] / ref:6.1f}  {found}", flush=True)
+            runs = [
+                recognize(pts, tpls, cfg, seed=0, viewpoint_m=viewpoint) for _ in range(args.runs)
+            ]
+            med = {
+                s: statistics.median(r.stage_times_ms[s] for r in runs) for s in (*STAGES, "total")
+            }
+            found = any(
+                d.target == "t72" and np.linalg.norm(d.T_world_target[:2, 3] - truth_xy) < 2
+                for d in runs[0].detections
+            )
+            print(
+                f"{name:5} {len(pts):7d}  {desc:10} "
+                + " ".join(f"{med[s]:9.1f}" for s in STAGES)
+                + f" {med['total']:9.1f} {med['total'] / ref:6.1f}  {found}",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

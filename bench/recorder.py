@@ -44,23 +44,53 @@ def generator(factor: float, duration_s: float) -> int:
     """Publish the load (factor x reference; 0 = frames back to back) and print what was sent as
     JSON."""
     import zenoh
+    from codec import camera_image
 
     from bus import codec, keys
     from bus.session import open_session
-    from codec import camera_image
 
     rng = np.random.default_rng(0)
     uav = "uav1"
-    image = codec.encode("Image", {"stamp_ns": 0, "seq": 0, "version": 1, "frame_seq": 0, "encoding": "rgb8",
-                                   "data": camera_image(rng), "K": np.eye(3)})
-    cloud = codec.encode("PointCloud", {"stamp_ns": 0, "seq": 0, "version": 1, "source": "lidar",
-                                        "frame_seqs": [0], "points_m": rng.normal(size=(20_000, 3)).astype(np.float32)})
-    imu = codec.encode("ImuBatch", {"stamp_ns": 0, "seq": 0, "version": 1, "frame_seq": 0,
-                                    "t_ns": np.zeros(1, np.int64), "gyro_radps": np.zeros((1, 3)),
-                                    "accel_mps2": np.zeros((1, 3))})
+    image = codec.encode(
+        "Image",
+        {
+            "stamp_ns": 0,
+            "seq": 0,
+            "version": 1,
+            "frame_seq": 0,
+            "encoding": "rgb8",
+            "data": camera_image(rng),
+            "K": np.eye(3),
+        },
+    )
+    cloud = codec.encode(
+        "PointCloud",
+        {
+            "stamp_ns": 0,
+            "seq": 0,
+            "version": 1,
+            "source": "lidar",
+            "frame_seqs": [0],
+            "points_m": rng.normal(size=(20_000, 3)).astype(np.float32),
+        },
+    )
+    imu = codec.encode(
+        "ImuBatch",
+        {
+            "stamp_ns": 0,
+            "seq": 0,
+            "version": 1,
+            "frame_seq": 0,
+            "t_ns": np.zeros(1, np.int64),
+            "gyro_radps": np.zeros((1, 3)),
+            "accel_mps2": np.zeros((1, 3)),
+        },
+    )
     session = open_session()
-    pubs = {k: session.declare_publisher(k, congestion_control=zenoh.CongestionControl.BLOCK)
-            for k in (keys.image(uav), keys.lidar(uav), keys.imu(uav))}
+    pubs = {
+        k: session.declare_publisher(k, congestion_control=zenoh.CongestionControl.BLOCK)
+        for k in (keys.image(uav), keys.lidar(uav), keys.imu(uav))
+    }
     seqs = dict.fromkeys(pubs, 0)
     sent_bytes = 0
 
@@ -97,15 +127,26 @@ def generator(factor: float, duration_s: float) -> int:
     # Keep the session (and its queued data) until the recorder says it has everything.
     recorded: dict[str, int] = {}
     sub = session.declare_subscriber(
-        "atr/*/recorder/status", lambda s: recorded.update(codec.unpack(s.payload.to_bytes())["handled_by_key"])
+        "atr/*/recorder/status",
+        lambda s: recorded.update(codec.unpack(s.payload.to_bytes())["handled_by_key"]),
     )
     deadline = time.monotonic() + 120
     while any(recorded.get(k, 0) < n for k, n in seqs.items()) and time.monotonic() < deadline:
         time.sleep(0.1)
     sub.undeclare()
     session.close()
-    print(json.dumps({"sent": {k: v for k, v in seqs.items()}, "bytes": sent_bytes, "elapsed_s": elapsed,
-                      "start_ns": start_ns, "end_ns": end_ns}), flush=True)
+    print(
+        json.dumps(
+            {
+                "sent": {k: v for k, v in seqs.items()},
+                "bytes": sent_bytes,
+                "elapsed_s": elapsed,
+                "start_ns": start_ns,
+                "end_ns": end_ns,
+            }
+        ),
+        flush=True,
+    )
     return 0
 
 
@@ -116,13 +157,32 @@ def one_run(factor: float, duration_s: float, workdir: Path) -> dict:
     out = workdir / f"rec-{factor}.mcap"
     env = bus_env(hub)
     env["ATR_LOG_LEVEL"] = "INFO"
-    recorder = subprocess.Popen([sys.executable, "-m", "cli.main", "record", "--out", str(out)],
-                                env=env, cwd=REPO, stderr=subprocess.PIPE, text=True)
+    recorder = subprocess.Popen(
+        [sys.executable, "-m", "cli.main", "record", "--out", str(out)],
+        env=env,
+        cwd=REPO,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         time.sleep(2.0)
-        gen = subprocess.run([sys.executable, __file__, "--role", "generator", "--factor", str(factor),
-                              "--duration", str(duration_s)], env=bus_env(hub), cwd=REPO,
-                             capture_output=True, text=True, timeout=duration_s + 120)
+        gen = subprocess.run(
+            [
+                sys.executable,
+                __file__,
+                "--role",
+                "generator",
+                "--factor",
+                str(factor),
+                "--duration",
+                str(duration_s),
+            ],
+            env=bus_env(hub),
+            cwd=REPO,
+            capture_output=True,
+            text=True,
+            timeout=duration_s + 120,
+        )
         if gen.returncode != 0:
             raise RuntimeError(gen.stderr)
         sent = json.loads(gen.stdout.strip().splitlines()[-1])
@@ -167,7 +227,9 @@ def main() -> int:
     parser.add_argument("--duration", type=float, default=8.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--runs", default="1,2,0", help="load factors to run (0 = back to back)")
-    parser.add_argument("--profile", action="store_true", help="time each recorder stage (in-process) instead")
+    parser.add_argument(
+        "--profile", action="store_true", help="time each recorder stage (in-process) instead"
+    )
     parser.add_argument("--zstd-levels", default="1,-1,-3", help="zstd levels to profile")
     args = parser.parse_args()
     if args.role == "generator":
@@ -178,18 +240,25 @@ def main() -> int:
         return 0
     workdir = Path(tempfile.mkdtemp(prefix="atr-bench-"))
     ref_mb = (CAMERA_HZ * 3_686_588 + CAMERA_HZ * 240_087 + IMU_HZ * 300) / 1e6
-    print(f"reference load (1x): {ref_mb:.0f} MB/s, {CAMERA_HZ * 2 + IMU_HZ} msg/s; "
-          f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
-    print(f"{'load':<6} {'offered MB/s':>12} {'recorded MB/s':>13} {'msg/s':>7} {'x ref':>6} {'lag s':>6} "
-          f"{'queue':>6} {'lost':>5} {'gaps':>5} {'file/raw':>8}  check")
+    print(
+        f"reference load (1x): {ref_mb:.0f} MB/s, {CAMERA_HZ * 2 + IMU_HZ} msg/s; "
+        f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
+    )
+    print(
+        f"{'load':<6} {'offered MB/s':>12} {'recorded MB/s':>13} {'msg/s':>7} {'x ref':>6} {'lag s':>6} "
+        f"{'queue':>6} {'lost':>5} {'gaps':>5} {'file/raw':>8}  check"
+    )
     for factor in (float(f) for f in args.runs.split(",")):
         runs = [one_run(factor, args.duration, workdir) for _ in range(args.repeats)]
         med = {k: statistics.median(r[k] for r in runs) for k in runs[0] if k != "check"}
         label = f"{factor:g}x" if factor else "max"
-        print(f"{label:<6} {med['offered_MBps']:>12.0f} {med['recorded_MBps']:>13.0f} "
-              f"{med['recorded_msgps']:>7.0f} {med['recorded_MBps'] / ref_mb:>6.2f} {med['lag_s']:>6.2f} "
-              f"{med['queue_max']:>6.0f} {max(r['lost'] for r in runs):>5} {max(r['gaps'] for r in runs):>5} "
-              f"{med['file_ratio']:>8.2f}  {'; '.join(sorted({r['check'] for r in runs}))}", flush=True)
+        print(
+            f"{label:<6} {med['offered_MBps']:>12.0f} {med['recorded_MBps']:>13.0f} "
+            f"{med['recorded_msgps']:>7.0f} {med['recorded_MBps'] / ref_mb:>6.2f} {med['lag_s']:>6.2f} "
+            f"{med['queue_max']:>6.0f} {max(r['lost'] for r in runs):>5} {max(r['gaps'] for r in runs):>5} "
+            f"{med['file_ratio']:>8.2f}  {'; '.join(sorted({r['check'] for r in runs}))}",
+            flush=True,
+        )
     workdir.rmdir()
     return 0
 
@@ -211,6 +280,7 @@ def profile(factor: float, duration_s: float, zstd_level: int) -> None:
                 return fn(*a, **k)
             finally:
                 busy[name] += time.thread_time() - t0
+
         return wrapper
 
     Recorder._on_sample = timed("callback", Recorder._on_sample)  # type: ignore[method-assign]
@@ -223,16 +293,31 @@ def profile(factor: float, duration_s: float, zstd_level: int) -> None:
         session = open_session()
         recorder = Recorder(session, workdir / "p.mcap", RecorderConfig(zstd_level=zstd_level))
         t0, cpu0 = time.perf_counter(), time.process_time()
-        gen = subprocess.Popen([sys.executable, __file__, "--role", "generator", "--factor", str(factor),
-                                "--duration", str(duration_s)], env=bus_env(hub), cwd=REPO,
-                               stdout=subprocess.PIPE, text=True)
+        gen = subprocess.Popen(
+            [
+                sys.executable,
+                __file__,
+                "--role",
+                "generator",
+                "--factor",
+                str(factor),
+                "--duration",
+                str(duration_s),
+            ],
+            env=bus_env(hub),
+            cwd=REPO,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
         # the generator waits for a recorder Status before closing; stand in for the recorder
         # service
         from bus import codec, keys
 
         while gen.poll() is None:
-            session.put(keys.service_key("uav1", "recorder", "status"), codec.pack(
-                {"counters": {}, "handled_by_key": dict(recorder.stats.by_topic)}))
+            session.put(
+                keys.service_key("uav1", "recorder", "status"),
+                codec.pack({"counters": {}, "handled_by_key": dict(recorder.stats.by_topic)}),
+            )
             time.sleep(0.2)
         recorder.close()
         wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
@@ -241,14 +326,20 @@ def profile(factor: float, duration_s: float, zstd_level: int) -> None:
         hub_proc.terminate()
         hub_proc.wait()
     ratio = (workdir / "p.mcap").stat().st_size / recorder.stats.bytes
-    print(f"profile at {factor:g}x, zstd level {zstd_level}, file/raw {ratio:.2f}, "
-          f"{recorder.stats.bytes / 1e6:.0f} MB in wall {wall:.1f} s, "
-          f"load average {os.getloadavg()[0]:.1f}):")
+    print(
+        f"profile at {factor:g}x, zstd level {zstd_level}, file/raw {ratio:.2f}, "
+        f"{recorder.stats.bytes / 1e6:.0f} MB in wall {wall:.1f} s, "
+        f"load average {os.getloadavg()[0]:.1f}):"
+    )
     mb = recorder.stats.bytes / 1e6
     for name, seconds in busy.items():
-        print(f"  {name:<26} CPU {seconds:6.2f} s -> {mb / max(seconds, 1e-9):6.0f} MB per CPU-second")
-    print(f"  {'whole process':<26} CPU {cpu:6.2f} s -> {mb / cpu:6.0f} MB per CPU-second "
-          f"(2x reference load = {2 * 118} MB/s)")
+        print(
+            f"  {name:<26} CPU {seconds:6.2f} s -> {mb / max(seconds, 1e-9):6.0f} MB per CPU-second"
+        )
+    print(
+        f"  {'whole process':<26} CPU {cpu:6.2f} s -> {mb / cpu:6.0f} MB per CPU-second "
+        f"(2x reference load = {2 * 118} MB/s)"
+    )
     for p in workdir.iterdir():
         p.unlink()
     workdir.rmdir()

@@ -36,16 +36,35 @@ def load_pair():
         frames = list(simulate_flight(scenario(1, 2), seed=0, frames=2))
         a, b = frames
         gray = [cv2.cvtColor(f.image, cv2.COLOR_RGB2GRAY) for f in frames]
-        return "simulated scenario 1 run 2, frames 0-1", gray[0], gray[1], a.K, a.T_world_cam, b.T_world_cam
+        return (
+            "simulated scenario 1 run 2, frames 0-1",
+            gray[0],
+            gray[1],
+            a.K,
+            a.T_world_cam,
+            b.T_world_cam,
+        )
     from atr.io.dji import T_world_cam_from_meta, intrinsics_from_focal, read_dji_metadata
 
     names = ("DJI_0033.JPG", "DJI_0034.JPG")
     metas = [read_dji_metadata(DJI / n) for n in names]
-    gray = [cv2.resize(cv2.imread(str(DJI / n), cv2.IMREAD_GRAYSCALE), (1280, 720),
-                       interpolation=cv2.INTER_AREA) for n in names]
+    gray = [
+        cv2.resize(
+            cv2.imread(str(DJI / n), cv2.IMREAD_GRAYSCALE),
+            (1280, 720),
+            interpolation=cv2.INTER_AREA,
+        )
+        for n in names
+    ]
     K = intrinsics_from_focal(metas[0].focal_length_mm, 6.17, 1280, 720)
-    return ("DJI 0033-0034 at 1280x720", gray[0], gray[1], K,
-            T_world_cam_from_meta(metas[0], metas[0]), T_world_cam_from_meta(metas[1], metas[0]))
+    return (
+        "DJI 0033-0034 at 1280x720",
+        gray[0],
+        gray[1],
+        K,
+        T_world_cam_from_meta(metas[0], metas[0]),
+        T_world_cam_from_meta(metas[1], metas[0]),
+    )
 
 
 def median_ms(fn, repeats: int) -> float:
@@ -73,7 +92,9 @@ def timing(label, img_a, img_b, K, T_a, T_b, repeats: int) -> None:
     t_tri = median_ms(lambda: triangulate_known_pose(pa, pb, K, T_a, T_b, gftt), repeats)
     t_all = median_ms(lambda: reconstruct(img_a, img_b, K, T_a, T_b, gftt), repeats)
     cloud = reconstruct(img_a, img_b, K, T_a, T_b, gftt)
-    print(f"GFTT/KLT: corners {stats['keypoints']}, tracked {stats['tracked']}, points {len(cloud)}")
+    print(
+        f"GFTT/KLT: corners {stats['keypoints']}, tracked {stats['tracked']}, points {len(cloud)}"
+    )
     print(f"  gftt detect            {t_gftt:8.1f} ms")
     print(f"  klt fwd+bwd            {t_corr - t_gftt:8.1f} ms")
     print(f"  triangulation          {t_tri:8.1f} ms")
@@ -92,7 +113,8 @@ def timing(label, img_a, img_b, K, T_a, T_b, repeats: int) -> None:
     t_match = median_ms(lambda: match_nndr(da, db, surf_cfg.surf_nndr), repeats)
     ia, ib = match_nndr(da, db, surf_cfg.surf_nndr)
     t_tri_s = median_ms(
-        lambda: triangulate_known_pose(ka[ia, :2], kb[ib, :2], K, T_a, T_b, surf_cfg), repeats)
+        lambda: triangulate_known_pose(ka[ia, :2], kb[ib, :2], K, T_a, T_b, surf_cfg), repeats
+    )
     t_all_s = median_ms(lambda: reconstruct(img_a, img_b, K, T_a, T_b, surf_cfg), repeats)
     cloud_s = reconstruct(img_a, img_b, K, T_a, T_b, surf_cfg)
     print(f"SURF: keypoints {len(ka)}/{len(kb)}, matches {len(ia)}, points {len(cloud_s)}")
@@ -126,8 +148,12 @@ def repeatability_table(img: np.ndarray) -> None:
         return np.float32([p.pt for p in k]).reshape(-1, 2), d
 
     tolerance_px = 2.5
-    print(f"repeatability / matching score (NNDR 0.6) / match precision, tolerance {tolerance_px} px")
-    print("| transform | SURF kp | SURF rep | SURF score | SURF prec | SIFT kp | SIFT rep | SIFT score | SIFT prec |")
+    print(
+        f"repeatability / matching score (NNDR 0.6) / match precision, tolerance {tolerance_px} px"
+    )
+    print(
+        "| transform | SURF kp | SURF rep | SURF score | SURF prec | SIFT kp | SIFT rep | SIFT score | SIFT prec |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for angle, scale in ((15, 1), (30, 1), (45, 1), (90, 1), (0, 0.7), (0, 1.4), (30, 0.8)):
         M = cv2.getRotationMatrix2D((w / 2, h / 2), angle, scale)
@@ -153,7 +179,9 @@ def gap_study() -> None:
     from atr.sim.scenarios import scenario
     from atr.sim.world import build_world
 
-    print("| range m | gap | matcher | points | median parallax deg | median dist m | p90 dist m | median sigma m |")
+    print(
+        "| range m | gap | matcher | points | median parallax deg | median dist m | p90 dist m | median sigma m |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for number, run in ((1, 2), (2, 2), (3, 1)):
         sc = scenario(number, run)
@@ -161,27 +189,37 @@ def gap_study() -> None:
         frames = list(simulate_flight(sc, seed=0, frames=4, world=world))
         mesh = merge([world.static, world.target])
         rays = o3d.t.geometry.RaycastingScene()
-        rays.add_triangles(o3d.core.Tensor(mesh.vertices.astype(np.float32)),
-                           o3d.core.Tensor(mesh.triangles.astype(np.uint32)))
+        rays.add_triangles(
+            o3d.core.Tensor(mesh.vertices.astype(np.float32)),
+            o3d.core.Tensor(mesh.triangles.astype(np.uint32)),
+        )
         for gap in (1, 2, 3):
             for matcher in ("gftt", "surf"):
                 a, b = frames[0], frames[gap]
-                cloud = reconstruct(a.image, b.image, a.K, a.T_world_cam, b.T_world_cam,
-                                    SfmConfig(matcher=matcher))
+                cloud = reconstruct(
+                    a.image, b.image, a.K, a.T_world_cam, b.T_world_cam, SfmConfig(matcher=matcher)
+                )
                 if len(cloud) == 0:
                     print(f"| {sc.range_m:.0f} | {gap} | {matcher} | 0 | - | - | - | - |")
                     continue
                 d = rays.compute_distance(
-                    o3d.core.Tensor(cloud.points_world_m.astype(np.float32))).numpy()
-                print(f"| {sc.range_m:.0f} | {gap} | {matcher} | {len(cloud)} | "
-                      f"{cloud.stats['median_parallax_deg']:.1f} | {np.median(d):.3f} | "
-                      f"{np.percentile(d, 90):.3f} | {np.median(cloud.sigma_m):.3f} |")
+                    o3d.core.Tensor(cloud.points_world_m.astype(np.float32))
+                ).numpy()
+                print(
+                    f"| {sc.range_m:.0f} | {gap} | {matcher} | {len(cloud)} | "
+                    f"{cloud.stats['median_parallax_deg']:.1f} | {np.median(d):.3f} | "
+                    f"{np.percentile(d, 90):.3f} | {np.median(cloud.sigma_m):.3f} |"
+                )
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--repeats", type=int, default=7)
-    parser.add_argument("--repeatability", action="store_true", help="SURF vs SIFT repeatability table")
+    parser.add_argument(
+        "--repeatability", action="store_true", help="SURF vs SIFT repeatability table"
+    )
     parser.add_argument("--gaps", action="store_true", help="frame-gap study on the simulator")
     args = parser.parse_args()
     label, img_a, img_b, K, T_a, T_b = load_pair()

@@ -46,10 +46,13 @@ def figures(repeat: int) -> None:
     rays[:, 3:] = np.random.default_rng(0).normal(size=(n_rays, 3))
     ref_scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
     t_ref = _median_time(lambda: ref_scene.cast_rays(o3d.core.Tensor.from_numpy(rays)), repeat)
-    cpu_ref = _median_time(lambda: ref_scene.cast_rays(o3d.core.Tensor.from_numpy(rays)), repeat,
-                           time.process_time)
-    print(f"reference: cast_rays on a one-box scene, {n_rays} rays: {t_ref * 1e3:.0f} ms "
-          f"({cpu_ref:.2f} CPU s)")
+    cpu_ref = _median_time(
+        lambda: ref_scene.cast_rays(o3d.core.Tensor.from_numpy(rays)), repeat, time.process_time
+    )
+    print(
+        f"reference: cast_rays on a one-box scene, {n_rays} rays: {t_ref * 1e3:.0f} ms "
+        f"({cpu_ref:.2f} CPU s)"
+    )
     per_run = {}
     for sc in (scenario(1, 3), scenario(2, 3), scenario(3, 1)):
         t = time.perf_counter()
@@ -63,8 +66,9 @@ def figures(repeat: int) -> None:
         t_vis = _median_time(lambda: ren.visible_fraction(T), repeat)
         lrng = np.random.default_rng(0)
         ren.lidar_scan(T, sc.lidar_resolution_m, sc.range_m, lrng)
-        t_lidar = _median_time(lambda: ren.lidar_scan(T, sc.lidar_resolution_m, sc.range_m, lrng),
-                               repeat)
+        t_lidar = _median_time(
+            lambda: ren.lidar_scan(T, sc.lidar_resolution_m, sc.range_m, lrng), repeat
+        )
         lidar_rays = cfg.lidar_grid**2 * (cfg.lidar_sub_rays + 1)
         it = simulate_flight(sc, seed=0, frames=repeat + 1, config=cfg, world=world)
         next(it)
@@ -72,21 +76,25 @@ def figures(repeat: int) -> None:
         n = sum(1 for _ in it)
         t_sim = (time.perf_counter() - t) / max(n, 1)
         per_run[sc.scenario] = (t_world, t_sim, t_lidar)
-        print(f"scenario {sc.scenario} run {sc.run} ({sc.range_m:.0f} m, "
-              f"{sc.obliquity_deg:.0f} deg): "
-              f"world build {t_world:.2f} s ({world.static.n_triangles} triangles); "
-              f"render {t_frame * 1e3:.0f} ms/frame = {1 / t_frame:.2f} frames/s "
-              f"({t_frame / t_ref:.1f}x reference, {cpu_frame:.2f} CPU s); "
-              f"visible_fraction {t_vis * 1e3:.0f} ms; "
-              f"simulate_flight {t_sim * 1e3:.0f} ms/frame; "
-              f"LIDAR scan {t_lidar * 1e3:.0f} ms = {lidar_rays / t_lidar / 1e6:.2f} M rays/s")
+        print(
+            f"scenario {sc.scenario} run {sc.run} ({sc.range_m:.0f} m, "
+            f"{sc.obliquity_deg:.0f} deg): "
+            f"world build {t_world:.2f} s ({world.static.n_triangles} triangles); "
+            f"render {t_frame * 1e3:.0f} ms/frame = {1 / t_frame:.2f} frames/s "
+            f"({t_frame / t_ref:.1f}x reference, {cpu_frame:.2f} CPU s); "
+            f"visible_fraction {t_vis * 1e3:.0f} ms; "
+            f"simulate_flight {t_sim * 1e3:.0f} ms/frame; "
+            f"LIDAR scan {t_lidar * 1e3:.0f} ms = {lidar_rays / t_lidar / 1e6:.2f} M rays/s"
+        )
     total_cam = total_lidar = 0.0
     for sc in all_scenarios():
         t_world, t_sim, t_lidar = per_run[sc.scenario]
         total_cam += t_world + sc.n_frames * t_sim
         total_lidar += sc.n_frames * t_lidar
-    print(f"projected Table II set (9 runs, {sum(s.n_frames for s in all_scenarios())} frames): "
-          f"{total_cam / 60:.1f} min camera+IMU+truth, +{total_lidar / 60:.1f} min with LIDAR")
+    print(
+        f"projected Table II set (9 runs, {sum(s.n_frames for s in all_scenarios())} frames): "
+        f"{total_cam / 60:.1f} min camera+IMU+truth, +{total_lidar / 60:.1f} min with LIDAR"
+    )
 
 
 # pictures -----------------------------------------------------------------------------------------
@@ -129,7 +137,7 @@ def pictures(out: Path, seed: int) -> None:
         print(f"{name}: visible_fraction {f.targets[0].visible_fraction:.2f}")
     while len(tiles) % 3:
         tiles.append(np.zeros_like(tiles[0]))
-    rows = [np.hstack(tiles[i:i + 3]) for i in range(0, len(tiles), 3)]
+    rows = [np.hstack(tiles[i : i + 3]) for i in range(0, len(tiles), 3)]
     cv2.imwrite(str(out / "frames_table2.png"), _bgr(np.vstack(rows)))
     # KLT tracks between the two frames of a scene (GFTT + pyramidal LK, forward-backward check 1
     # px)
@@ -160,8 +168,9 @@ def pictures(out: Path, seed: int) -> None:
     order = np.argsort(-depth)
     canvas = np.full((960, 1280, 3), 20, np.uint8)
     z = pts[:, 2] - tgt[2]
-    col = cv2.applyColorMap(np.clip((z + 0.5) / 8.0 * 255, 0, 255).astype(np.uint8)[:, None],
-                            cv2.COLORMAP_TURBO)
+    col = cv2.applyColorMap(
+        np.clip((z + 0.5) / 8.0 * 255, 0, 255).astype(np.uint8)[:, None], cv2.COLORMAP_TURBO
+    )
     for i in order:
         u, v = uv[i]
         if np.isfinite(u) and 0 <= u < 1280 and 0 <= v < 960:
@@ -190,8 +199,9 @@ def pictures(out: Path, seed: int) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--repeat", type=int, default=5, help="runs per figure (median)")
-    parser.add_argument("--pictures", type=Path,
-                        help="write documentation pictures into this folder")
+    parser.add_argument(
+        "--pictures", type=Path, help="write documentation pictures into this folder"
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-figures", action="store_true")
     args = parser.parse_args()

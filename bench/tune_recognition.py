@@ -31,7 +31,17 @@ from pathlib import Path
 import numpy as np
 
 DEFAULT_CACHE = Path(tempfile.gettempdir()) / "atr_tuning"
-RUNS: tuple[tuple[int, int], ...] = ((1, 1), (1, 2), (1, 3), (1, 4), (2, 1), (2, 2), (2, 3), (2, 4), (3, 1))
+RUNS: tuple[tuple[int, int], ...] = (
+    (1, 1),
+    (1, 2),
+    (1, 3),
+    (1, 4),
+    (2, 1),
+    (2, 2),
+    (2, 3),
+    (2, 4),
+    (3, 1),
+)
 TUNING_SEEDS: tuple[int, ...] = (101, 102, 103, 104, 105)
 TARGETS: tuple[str, ...] = ("t72", "ifv", "truck6x6")
 
@@ -92,7 +102,8 @@ def make(args: argparse.Namespace) -> None:
             seq_a = int((offset + p / args.pairs) * (scen.n_frames - gap - 1))
             lidar = args.lidar_every > 0 and (p + seed) % args.lidar_every == 0
             (img_a, T_a, vis_a, _), (img_b, T_b, vis_b, lid) = _render_pair(
-                world, scen, seq_a, gap, lidar, seed, cfg)
+                world, scen, seq_a, gap, lidar, seed, cfg
+            )
             cloud = reconstruct(img_a, img_b, cfg.K, T_a, T_b, sfm_cfg)
             T_wt = world.T_world_target
             rel = np.linalg.inv(T_wt) @ T_b
@@ -102,18 +113,30 @@ def make(args: argparse.Namespace) -> None:
                 "viewpoint_m": T_b[:3, 3].astype(np.float64),
                 "T_world_target": T_wt.astype(np.float64),
                 "visible_fraction": np.array([vis_a, vis_b]),
-                "meta": np.array(json.dumps({
-                    "seed": seed, "scenario": s, "run": r, "seq_b": seq_a + gap,
-                    "obliquity_deg": scen.obliquity_deg, "range_m": scen.range_m,
-                    "azimuth_in_target_deg": az_deg, "sfm_reason": cloud.reason,
-                })),
+                "meta": np.array(
+                    json.dumps(
+                        {
+                            "seed": seed,
+                            "scenario": s,
+                            "run": r,
+                            "seq_b": seq_a + gap,
+                            "obliquity_deg": scen.obliquity_deg,
+                            "range_m": scen.range_m,
+                            "azimuth_in_target_deg": az_deg,
+                            "sfm_reason": cloud.reason,
+                        }
+                    )
+                ),
             }
             if lid is not None:
                 data["lidar_points_m"] = np.asarray(lid, np.float32)
             np.savez_compressed(name, **data)
             n_done += 1
-            print(f"{name.name}: {len(cloud.points_world_m)} sfm points, vis {vis_b:.2f}, az {az_deg:.0f}, "
-                  f"lidar {0 if lid is None else len(lid)}, {time.perf_counter() - t0:.1f} s", flush=True)
+            print(
+                f"{name.name}: {len(cloud.points_world_m)} sfm points, vis {vis_b:.2f}, az {az_deg:.0f}, "
+                f"lidar {0 if lid is None else len(lid)}, {time.perf_counter() - t0:.1f} s",
+                flush=True,
+            )
     print(f"made {n_done} scenes")
 
 
@@ -130,21 +153,26 @@ def load_scenes(cache: Path, scenarios: list[int], source: str) -> list[dict]:
             key = "sfm_points_m" if source == "sfm" else "lidar_points_m"
             if key not in z.files:
                 continue
-            scenes.append({
-                "name": path.stem, "points": z[key].astype(np.float64), "viewpoint": z["viewpoint_m"],
-                "T_world_target": z["T_world_target"], "visible": z["visible_fraction"], "meta": meta,
-            })
+            scenes.append(
+                {
+                    "name": path.stem,
+                    "points": z[key].astype(np.float64),
+                    "viewpoint": z["viewpoint_m"],
+                    "T_world_target": z["T_world_target"],
+                    "visible": z["visible_fraction"],
+                    "meta": meta,
+                }
+            )
     return scenes
 
 
 def build_templates(config, descriptor: str) -> list:
-    from atr.recognition import build_template
-    from atr.sim.vehicles import VEHICLES
-
     import hashlib
     import pickle
 
+    from atr.recognition import build_template
     from atr.recognition.template import TEMPLATE_VERSION
+    from atr.sim.vehicles import VEHICLES
 
     cfg = dataclasses.replace(config, descriptor=descriptor)
     key = hashlib.sha256(repr((cfg, TEMPLATE_VERSION)).encode()).hexdigest()[:16]
@@ -182,7 +210,9 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
     stage_sum: dict[str, list[float]] = {}
     errors = []
     for sc in scenes:
-        res = recognize(sc["points"], templates, config, seed=sc["meta"]["seq_b"], viewpoint_m=sc["viewpoint"])
+        res = recognize(
+            sc["points"], templates, config, seed=sc["meta"]["seq_b"], viewpoint_m=sc["viewpoint"]
+        )
         times.append(res.stage_times_ms["total"])
         for k, v in res.stage_times_ms.items():
             stage_sum.setdefault(k, []).append(v)
@@ -196,54 +226,73 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
         if s.outcome == "tp":
             errors.append(s.translation_error_m)
         if verbose:
-            det = ", ".join(f"{d.target}:{d.score:.0f}/{d.overlap:.2f}@"
-                            f"{np.linalg.norm(d.T_world_target[:3, 3] - sc['T_world_target'][:3, 3]):.1f}m"
-                            for d in res.detections)
-            print(f"  {sc['name']:22} {s.outcome:2} pts {len(sc['points']):6d} kp {res.stats.get('keypoints', 0):5d}"
-                  f" vis {sc['visible'][1]:.2f} az {m['azimuth_in_target_deg']:5.0f}"
-                  f" {res.stage_times_ms['total']:6.0f} ms  [{det}]", flush=True)
+            det = ", ".join(
+                f"{d.target}:{d.score:.0f}/{d.overlap:.2f}@"
+                f"{np.linalg.norm(d.T_world_target[:3, 3] - sc['T_world_target'][:3, 3]):.1f}m"
+                for d in res.detections
+            )
+            print(
+                f"  {sc['name']:22} {s.outcome:2} pts {len(sc['points']):6d} kp {res.stats.get('keypoints', 0):5d}"
+                f" vis {sc['visible'][1]:.2f} az {m['azimuth_in_target_deg']:5.0f}"
+                f" {res.stage_times_ms['total']:6.0f} ms  [{det}]",
+                flush=True,
+            )
     all_scores = [s for v in per.values() for s in v]
-    summary = {
-        "per": {k: dataclasses.asdict(count(v)) | {"f1": count(v).f1} for k, v in sorted(per.items())},
+    return {
+        "per": {
+            k: dataclasses.asdict(count(v)) | {"f1": count(v).f1} for k, v in sorted(per.items())
+        },
         "all": dataclasses.asdict(count(all_scores)) | {"f1": count(all_scores).f1},
         "t_error_median_m": float(np.median(errors)) if errors else float("nan"),
         "time_median_ms": float(statistics.median(times)) if times else float("nan"),
         "stages_median_ms": {k: float(statistics.median(v)) for k, v in stage_sum.items()},
     }
-    return summary
 
 
 def eval_cmd(args: argparse.Namespace) -> None:
     from atr.recognition import RecognitionConfig
 
-    config = dataclasses.replace(RecognitionConfig(descriptor=args.descriptor), **parse_sets(args.set))
+    config = dataclasses.replace(
+        RecognitionConfig(descriptor=args.descriptor), **parse_sets(args.set)
+    )
     scenes = load_scenes(args.cache, args.scenario, args.source)
     if args.limit:
         scenes = scenes[: args.limit]
     t = time.perf_counter()
     templates = build_templates(config, args.descriptor)
-    print(f"{len(templates)} templates in {time.perf_counter() - t:.1f} s; {len(scenes)} scenes "
-          f"({args.source}, {args.descriptor}) {' '.join(args.set)}", flush=True)
+    print(
+        f"{len(templates)} templates in {time.perf_counter() - t:.1f} s; {len(scenes)} scenes "
+        f"({args.source}, {args.descriptor}) {' '.join(args.set)}",
+        flush=True,
+    )
     s = evaluate(scenes, templates, config, args.verbose)
     for k, v in s["per"].items():
-        print(f"  {k:20} tp {v['tp']:3d} fp {v['fp']:3d} fn {v['fn']:3d} tn {v['tn']:3d}  F1 {v['f1']:.3f}")
+        print(
+            f"  {k:20} tp {v['tp']:3d} fp {v['fp']:3d} fn {v['fn']:3d} tn {v['tn']:3d}  F1 {v['f1']:.3f}"
+        )
     a = s["all"]
-    print(f"  ALL                  tp {a['tp']:3d} fp {a['fp']:3d} fn {a['fn']:3d} tn {a['tn']:3d}  F1 {a['f1']:.3f}"
-          f"  t_err {s['t_error_median_m']:.2f} m  time {s['time_median_ms']:.0f} ms")
+    print(
+        f"  ALL                  tp {a['tp']:3d} fp {a['fp']:3d} fn {a['fn']:3d} tn {a['tn']:3d}  F1 {a['f1']:.3f}"
+        f"  t_err {s['t_error_median_m']:.2f} m  time {s['time_median_ms']:.0f} ms"
+    )
     print("  stages " + " ".join(f"{k} {v:.0f}" for k, v in s["stages_median_ms"].items()))
     if args.json:
         Path(args.json).write_text(json.dumps(s, indent=1))
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     sub = ap.add_subparsers(dest="cmd", required=True)
     mk = sub.add_parser("make")
     mk.add_argument("--cache", type=Path, default=DEFAULT_CACHE)
     mk.add_argument("--seeds", type=int, nargs="+", default=list(TUNING_SEEDS))
     mk.add_argument("--scenario", type=int, nargs="+", default=[1, 2, 3])
     mk.add_argument("--pairs", type=int, default=2, help="frame pairs per run")
-    mk.add_argument("--lidar-every", type=int, default=3, help="a LIDAR scan with every n-th pair (0: none)")
+    mk.add_argument(
+        "--lidar-every", type=int, default=3, help="a LIDAR scan with every n-th pair (0: none)"
+    )
     mk.add_argument("--shard", type=int, nargs=2, default=None, metavar=("I", "N"))
     ev = sub.add_parser("eval")
     ev.add_argument("--cache", type=Path, default=DEFAULT_CACHE)

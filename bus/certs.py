@@ -44,8 +44,17 @@ DEFAULT_AIR_PORT = 7448  # the air router, on the air host's loopback only
 DEFAULT_DAYS = 825  # certificate lifetime; the CA lives ten years
 
 # Message kinds of Zenoh's access control (zenoh 1.x `access_control.rules[].messages`).
-_ALL_MESSAGES = ["put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
-                 "liveliness_token", "liveliness_query", "declare_liveliness_subscriber"]
+_ALL_MESSAGES = [
+    "put",
+    "delete",
+    "declare_subscriber",
+    "query",
+    "reply",
+    "declare_queryable",
+    "liveliness_token",
+    "liveliness_query",
+    "declare_liveliness_subscriber",
+]
 # What the air side computes (docs/deployment.md): its services' own keys.
 AIR_SERVICES = ("sensor_source", "pose_integrator", "sfm")
 
@@ -73,13 +82,15 @@ class Deployment:
         return self.root / f"{name}.key"
 
     def zenoh(self, name: str) -> Path:
-        """Zenoh config file, e.g. zenoh("split-air") -> out/zenoh/split-air.json5."""
+        """Path of a Zenoh config file by name: "split-air" -> out/zenoh/split-air.json5."""
         return self.root / "zenoh" / f"{name}.json5"
 
 
 def _openssl(*args: str, cwd: Path) -> None:
     if shutil.which("openssl") is None:
-        raise ConfigError("the openssl command was not found; install OpenSSL 3 (Debian: apt-get install openssl)")
+        raise ConfigError(
+            "the openssl command was not found; install OpenSSL 3 (Debian: apt-get install openssl)"
+        )
     result = subprocess.run(["openssl", *args], cwd=cwd, capture_output=True, text=True, timeout=60)
     if result.returncode != 0:
         raise ConfigError(f"openssl {args[0]} failed: {result.stderr.strip()}")
@@ -99,10 +110,28 @@ def _subject_alt_names(hosts: list[str]) -> str:
 def make_ca(out: Path, name: str = "atr-deployment-ca", days: int = 3650) -> None:
     """Write out/ca.pem and out/ca.key (a self-signed EC P-256 certificate authority)."""
     out.mkdir(parents=True, exist_ok=True)
-    _openssl("req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes",
-             "-keyout", "ca.key", "-out", "ca.pem", "-days", str(days), "-subj", f"/CN={name}",
-             "-addext", "basicConstraints=critical,CA:TRUE",
-             "-addext", "keyUsage=critical,keyCertSign,cRLSign", cwd=out)
+    _openssl(
+        "req",
+        "-x509",
+        "-newkey",
+        "ec",
+        "-pkeyopt",
+        "ec_paramgen_curve:prime256v1",
+        "-nodes",
+        "-keyout",
+        "ca.key",
+        "-out",
+        "ca.pem",
+        "-days",
+        str(days),
+        "-subj",
+        f"/CN={name}",
+        "-addext",
+        "basicConstraints=critical,CA:TRUE",
+        "-addext",
+        "keyUsage=critical,keyCertSign,cRLSign",
+        cwd=out,
+    )
     (out / "ca.key").chmod(0o600)
 
 
@@ -113,15 +142,48 @@ def issue(out: Path, name: str, *, hosts: list[str] = (), days: int = DEFAULT_DA
     """
     if not (out / "ca.key").exists():
         raise ConfigError(f"no CA key in {out}; make the CA first (make_ca)")
-    extensions = ["basicConstraints=critical,CA:FALSE", "keyUsage=critical,digitalSignature",
-                  "extendedKeyUsage=serverAuth,clientAuth"]
+    extensions = [
+        "basicConstraints=critical,CA:FALSE",
+        "keyUsage=critical,digitalSignature",
+        "extendedKeyUsage=serverAuth,clientAuth",
+    ]
     if hosts:
         extensions.append(f"subjectAltName={_subject_alt_names(list(hosts))}")
     (out / f"{name}.ext").write_text("\n".join(extensions) + "\n")
-    _openssl("req", "-new", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes",
-             "-keyout", f"{name}.key", "-out", f"{name}.csr", "-subj", f"/CN={name}", cwd=out)
-    _openssl("x509", "-req", "-in", f"{name}.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial",
-             "-out", f"{name}.pem", "-days", str(days), "-extfile", f"{name}.ext", cwd=out)
+    _openssl(
+        "req",
+        "-new",
+        "-newkey",
+        "ec",
+        "-pkeyopt",
+        "ec_paramgen_curve:prime256v1",
+        "-nodes",
+        "-keyout",
+        f"{name}.key",
+        "-out",
+        f"{name}.csr",
+        "-subj",
+        f"/CN={name}",
+        cwd=out,
+    )
+    _openssl(
+        "x509",
+        "-req",
+        "-in",
+        f"{name}.csr",
+        "-CA",
+        "ca.pem",
+        "-CAkey",
+        "ca.key",
+        "-CAcreateserial",
+        "-out",
+        f"{name}.pem",
+        "-days",
+        str(days),
+        "-extfile",
+        f"{name}.ext",
+        cwd=out,
+    )
     (out / f"{name}.key").chmod(0o600)
     for leftover in (f"{name}.csr", f"{name}.ext"):
         (out / leftover).unlink()
@@ -134,32 +196,77 @@ def ground_access_control(uav: str, matcher_on_air: bool = False) -> dict[str, A
     With the matcher on the air, the air may also publish `atr/{uav}/detections` and the matcher's keys.
     """
     services = list(AIR_SERVICES) + (["atr_matcher"] if matcher_on_air else [])
-    air_puts = [f"atr/{uav}/camera/image", f"atr/{uav}/imu", f"atr/{uav}/lidar/cloud",
-                f"atr/{uav}/pose/camera", f"atr/{uav}/pose/relative", f"atr/{uav}/sfm/cloud",
-                f"sim/{uav}/truth"]
-    air_puts += [f"atr/{uav}/{service}/{kind}" for service in services for kind in ("status", "errors", "timing")]
+    air_puts = [
+        f"atr/{uav}/camera/image",
+        f"atr/{uav}/imu",
+        f"atr/{uav}/lidar/cloud",
+        f"atr/{uav}/pose/camera",
+        f"atr/{uav}/pose/relative",
+        f"atr/{uav}/sfm/cloud",
+        f"sim/{uav}/truth",
+    ]
+    air_puts += [
+        f"atr/{uav}/{service}/{kind}"
+        for service in services
+        for kind in ("status", "errors", "timing")
+    ]
     if matcher_on_air:
         air_puts.append(f"atr/{uav}/detections")
     return {
         "enabled": True,
         "default_permission": "deny",
         "rules": [
-            {"id": "ground-all", "permission": "allow", "flows": ["ingress", "egress"],
-             "messages": _ALL_MESSAGES, "key_exprs": ["**"]},
-            {"id": "air-publish", "permission": "allow", "flows": ["ingress"], "messages": ["put"],
-             "key_exprs": sorted(set(air_puts))},
-            {"id": "air-subscribe", "permission": "allow", "flows": ["ingress"],
-             "messages": ["declare_subscriber"], "key_exprs": [f"atr/{uav}/**", f"sim/{uav}/**"]},
-            {"id": "air-query-templates", "permission": "allow", "flows": ["ingress"], "messages": ["query"],
-             "key_exprs": ["atr/templates/**"]},
+            {
+                "id": "ground-all",
+                "permission": "allow",
+                "flows": ["ingress", "egress"],
+                "messages": _ALL_MESSAGES,
+                "key_exprs": ["**"],
+            },
+            {
+                "id": "air-publish",
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": ["put"],
+                "key_exprs": sorted(set(air_puts)),
+            },
+            {
+                "id": "air-subscribe",
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": ["declare_subscriber"],
+                "key_exprs": [f"atr/{uav}/**", f"sim/{uav}/**"],
+            },
+            {
+                "id": "air-query-templates",
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": ["query"],
+                "key_exprs": ["atr/templates/**"],
+            },
             # What the ground sends to the air: its own vehicle's keys, template replies, and the ground's
             # interests (subscriptions, queryables), without which the air router would not forward anything.
-            {"id": "air-receive", "permission": "allow", "flows": ["egress"], "messages": ["put"],
-             "key_exprs": [f"atr/{uav}/**"]},
-            {"id": "air-receive-templates", "permission": "allow", "flows": ["egress"], "messages": ["reply"],
-             "key_exprs": ["atr/templates/**"]},
-            {"id": "air-learn-interests", "permission": "allow", "flows": ["egress"],
-             "messages": ["declare_subscriber", "declare_queryable"], "key_exprs": ["**"]},
+            {
+                "id": "air-receive",
+                "permission": "allow",
+                "flows": ["egress"],
+                "messages": ["put"],
+                "key_exprs": [f"atr/{uav}/**"],
+            },
+            {
+                "id": "air-receive-templates",
+                "permission": "allow",
+                "flows": ["egress"],
+                "messages": ["reply"],
+                "key_exprs": ["atr/templates/**"],
+            },
+            {
+                "id": "air-learn-interests",
+                "permission": "allow",
+                "flows": ["egress"],
+                "messages": ["declare_subscriber", "declare_queryable"],
+                "key_exprs": ["**"],
+            },
         ],
         "subjects": [
             {"id": "ground", "cert_common_names": [GROUND]},
@@ -167,9 +274,18 @@ def ground_access_control(uav: str, matcher_on_air: bool = False) -> dict[str, A
         ],
         "policies": [
             {"id": "ground", "rules": ["ground-all"], "subjects": ["ground"]},
-            {"id": "air", "subjects": ["air"],
-             "rules": ["air-publish", "air-subscribe", "air-query-templates", "air-receive",
-                       "air-receive-templates", "air-learn-interests"]},
+            {
+                "id": "air",
+                "subjects": ["air"],
+                "rules": [
+                    "air-publish",
+                    "air-subscribe",
+                    "air-query-templates",
+                    "air-receive",
+                    "air-receive-templates",
+                    "air-learn-interests",
+                ],
+            },
         ],
     }
 
@@ -186,8 +302,15 @@ def air_access_control(images_to_ground: bool = False) -> dict[str, Any]:
     return {
         "enabled": True,
         "default_permission": "allow",
-        "rules": [{"id": "images-stay-on-air", "permission": "deny", "flows": ["egress"],
-                   "messages": ["put"], "key_exprs": ["atr/*/camera/image"]}],
+        "rules": [
+            {
+                "id": "images-stay-on-air",
+                "permission": "deny",
+                "flows": ["egress"],
+                "messages": ["put"],
+                "key_exprs": ["atr/*/camera/image"],
+            }
+        ],
         "subjects": [{"id": "radio-link", "link_protocols": ["tls"]}],
         "policies": [{"id": "radio", "rules": ["images-stay-on-air"], "subjects": ["radio-link"]}],
     }
@@ -198,6 +321,7 @@ def render_config(name: str, values: dict[str, str]) -> dict[str, Any]:
 
     Raises:
         ConfigError: unknown template or a token without a value.
+
     """
     path = TEMPLATES / f"{name}.json5"
     if not path.exists():
@@ -207,14 +331,24 @@ def render_config(name: str, values: dict[str, str]) -> dict[str, Any]:
         text = text.replace("${" + token + "}", str(value))
     if "${" in text:
         start = text.index("${")
-        raise ConfigError(f"template {path.name}: no value for {text[start:text.index('}', start) + 1]}")
+        raise ConfigError(
+            f"template {path.name}: no value for {text[start : text.index('}', start) + 1]}"
+        )
     return json5.loads(text)
 
 
-def make_deployment(out: str | Path, *, ground: str, uav: str = "uav1", port: int = DEFAULT_PORT,
-                    air_port: int = DEFAULT_AIR_PORT, matcher_on_air: bool = False,
-                    images_to_ground: bool = False, extra_hosts: list[str] = (),
-                    days: int = DEFAULT_DAYS) -> Deployment:
+def make_deployment(
+    out: str | Path,
+    *,
+    ground: str,
+    uav: str = "uav1",
+    port: int = DEFAULT_PORT,
+    air_port: int = DEFAULT_AIR_PORT,
+    matcher_on_air: bool = False,
+    images_to_ground: bool = False,
+    extra_hosts: list[str] = (),
+    days: int = DEFAULT_DAYS,
+) -> Deployment:
     """Write a deployment's CA, certificates and Zenoh configs under `out` (see the module docstring).
 
     Args:
@@ -230,6 +364,7 @@ def make_deployment(out: str | Path, *, ground: str, uav: str = "uav1", port: in
 
     Raises:
         ConfigError: a bad argument or an openssl failure.
+
     """
     if not ground or any(c in ground for c in "/ \t[]"):
         raise ConfigError(f"ground address {ground!r} must be a host name or an IP address")
@@ -237,11 +372,22 @@ def make_deployment(out: str | Path, *, ground: str, uav: str = "uav1", port: in
         raise ConfigError(f"ports {port}, {air_port} must be in 1..65535")
     root = Path(out).resolve()
     make_ca(root)
-    issue(root, GROUND_ROUTER, hosts=[ground, "127.0.0.1", "localhost", "ground", *extra_hosts], days=days)
+    issue(
+        root,
+        GROUND_ROUTER,
+        hosts=[ground, "127.0.0.1", "localhost", "ground", *extra_hosts],
+        days=days,
+    )
     issue(root, GROUND, days=days)
     issue(root, air_name(uav), days=days)
     host = f"[{ground}]" if ":" in ground else ground  # an IPv6 address in an endpoint
-    values = {"certs": str(root), "ground": host, "port": str(port), "air_port": str(air_port), "uav": uav}
+    values = {
+        "certs": str(root),
+        "ground": host,
+        "port": str(port),
+        "air_port": str(air_port),
+        "uav": uav,
+    }
     (root / "zenoh").mkdir(exist_ok=True)
     for name in TEMPLATE_NAMES:
         config = render_config(name, values | {"air_cert": air_name(uav)})

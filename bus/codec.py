@@ -23,9 +23,13 @@ MAX_MESSAGE_BYTES = 32 * 1024 * 1024  # larger payloads are refused: a 1280x960 
 
 def _pack_array(array: np.ndarray) -> msgpack.ExtType:
     if array.dtype.kind not in "biuf" or array.dtype.byteorder == ">":
-        raise SchemaError(f"array dtype {array.dtype} cannot go on the wire; expected little-endian numbers")
+        raise SchemaError(
+            f"array dtype {array.dtype} cannot go on the wire; expected little-endian numbers"
+        )
     dtype = array.dtype.str.encode()
-    header = struct.pack(f"<B{len(dtype)}sB{array.ndim}Q", len(dtype), dtype, array.ndim, *array.shape)
+    header = struct.pack(
+        f"<B{len(dtype)}sB{array.ndim}Q", len(dtype), dtype, array.ndim, *array.shape
+    )
     return msgpack.ExtType(NDARRAY_EXT, header + np.ascontiguousarray(array).tobytes())
 
 
@@ -39,7 +43,9 @@ def _default(obj: Any) -> Any:
 
 def _ext_hook(code: int, data: bytes) -> Any:
     if code != NDARRAY_EXT:
-        raise SchemaError(f"unknown msgpack extension type {code}; expected {NDARRAY_EXT} (ndarray)")
+        raise SchemaError(
+            f"unknown msgpack extension type {code}; expected {NDARRAY_EXT} (ndarray)"
+        )
     try:
         (n,) = struct.unpack_from("<B", data, 0)
         dtype = np.dtype(data[1 : 1 + n].decode())
@@ -60,13 +66,15 @@ def _array_chunks(array: np.ndarray) -> list[bytes | memoryview]:
     # once, by the final join, instead of through msgpack's growing buffer.
     array = np.ascontiguousarray(array)
     dtype = array.dtype.str.encode()
-    header = struct.pack(f"<B{len(dtype)}sB{array.ndim}Q", len(dtype), dtype, array.ndim, *array.shape)
+    header = struct.pack(
+        f"<B{len(dtype)}sB{array.ndim}Q", len(dtype), dtype, array.ndim, *array.shape
+    )
     size = len(header) + array.nbytes
     return [struct.pack(">BIb", 0xC9, size, NDARRAY_EXT), header, memoryview(array).cast("B")]
 
 
 def pack(message: dict[str, Any]) -> bytes:
-    """msgpack bytes of `message`, without schema validation (tools and tests)."""
+    """Msgpack bytes of `message`, without schema validation (tools and tests)."""
     if not isinstance(message, dict):
         return msgpack.packb(message, default=_default, use_bin_type=True)
     packer = msgpack.Packer(default=_default, use_bin_type=True)
@@ -87,15 +95,20 @@ def unpack(payload: bytes | bytearray | memoryview) -> Any:
 
     Raises:
         SchemaError: the bytes are not valid msgpack of this format.
+
     """
     if len(payload) > MAX_MESSAGE_BYTES:
-        raise SchemaError(f"message of {len(payload)} bytes exceeds the limit of {MAX_MESSAGE_BYTES}")
+        raise SchemaError(
+            f"message of {len(payload)} bytes exceeds the limit of {MAX_MESSAGE_BYTES}"
+        )
     try:
         return msgpack.unpackb(payload, ext_hook=_ext_hook, raw=False, strict_map_key=True)
     except SchemaError:
         raise
     except Exception as exc:  # msgpack raises several unrelated types for garbage input
-        raise SchemaError(f"payload of {len(payload)} bytes is not valid msgpack: {type(exc).__name__} {exc}") from exc
+        raise SchemaError(
+            f"payload of {len(payload)} bytes is not valid msgpack: {type(exc).__name__} {exc}"
+        ) from exc
 
 
 def encode(message_type: str, message: dict[str, Any]) -> bytes:
@@ -103,6 +116,7 @@ def encode(message_type: str, message: dict[str, Any]) -> bytes:
 
     Raises:
         SchemaError: the message breaks its schema.
+
     """
     schemas.validate(message_type, message)
     return pack(message)
@@ -113,10 +127,13 @@ def decode(message_type: str, payload: bytes | bytearray | memoryview) -> dict[s
 
     Raises:
         SchemaError: the bytes are not msgpack, not a map, or break the schema.
+
     """
     message = unpack(payload)
     if not isinstance(message, dict):
-        raise SchemaError(f"{message_type} payload decodes to {type(message).__name__}; expected a map")
+        raise SchemaError(
+            f"{message_type} payload decodes to {type(message).__name__}; expected a map"
+        )
     schemas.validate(message_type, message)
     return message
 

@@ -25,8 +25,10 @@ def _parts(T: np.ndarray):  # noqa: ANN202 - (Vector3, Quaternion)
     from foxglove.messages import Quaternion, Vector3  # noqa: PLC0415
 
     x, y, z, w = Rotation.from_matrix(np.asarray(T)[:3, :3]).as_quat()
-    return (Vector3(x=float(T[0, 3]), y=float(T[1, 3]), z=float(T[2, 3])),
-            Quaternion(x=float(x), y=float(y), z=float(z), w=float(w)))
+    return (
+        Vector3(x=float(T[0, 3]), y=float(T[1, 3]), z=float(T[2, 3])),
+        Quaternion(x=float(x), y=float(y), z=float(z), w=float(w)),
+    )
 
 
 def _pose(T: np.ndarray):  # noqa: ANN202 - foxglove.messages.Pose
@@ -46,9 +48,17 @@ def _transform(stamp_ns: int, child: str, T: np.ndarray):  # noqa: ANN202
     from foxglove.messages import FrameTransform, FrameTransforms  # noqa: PLC0415
 
     translation, rotation = _parts(T)
-    return FrameTransforms(transforms=[FrameTransform(
-        timestamp=_time(stamp_ns), parent_frame_id="world", child_frame_id=child,
-        translation=translation, rotation=rotation)])
+    return FrameTransforms(
+        transforms=[
+            FrameTransform(
+                timestamp=_time(stamp_ns),
+                parent_frame_id="world",
+                child_frame_id=child,
+                translation=translation,
+                rotation=rotation,
+            )
+        ]
+    )
 
 
 def _cloud(stamp_ns: int, points_m: np.ndarray):  # noqa: ANN202
@@ -57,30 +67,65 @@ def _cloud(stamp_ns: int, points_m: np.ndarray):  # noqa: ANN202
     f32 = PackedElementFieldNumericType.Float32
     fields = [PackedElementField(name=n, offset=4 * i, type=f32) for i, n in enumerate("xyz")]
     data = np.ascontiguousarray(points_m, np.float32).tobytes()
-    return PointCloud(timestamp=_time(stamp_ns), frame_id="world", pose=_pose(np.eye(4)), point_stride=12,
-                      fields=fields, data=data)
+    return PointCloud(
+        timestamp=_time(stamp_ns),
+        frame_id="world",
+        pose=_pose(np.eye(4)),
+        point_stride=12,
+        fields=fields,
+        data=data,
+    )
 
 
 def _detections(message: dict):  # noqa: ANN202
     from foxglove.messages import (  # noqa: PLC0415
-        Color, CubePrimitive, SceneEntity, SceneUpdate, TextPrimitive, Vector3,
+        Color,
+        CubePrimitive,
+        SceneEntity,
+        SceneUpdate,
+        TextPrimitive,
+        Vector3,
     )
 
     entities = []
     for i, det in enumerate(message["detections"]):
         T = np.asarray(det["T_world_target"], np.float64)
-        box = T @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, DETECTION_BOX_M[2] / 2], [0, 0, 0, 1.0]])
+        box = T @ np.array(
+            [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, DETECTION_BOX_M[2] / 2], [0, 0, 0, 1.0]]
+        )
         label = T.copy()
         label[2, 3] += DETECTION_BOX_M[2] + 1.0
-        color = Color(r=1.0, g=0.2, b=0.1, a=0.5) if det["target"] == "t72" else Color(r=0.2, g=0.6, b=1.0, a=0.5)
-        entities.append(SceneEntity(
-            timestamp=_time(message["stamp_ns"]), frame_id="world", id=f"detection-{i}",
-            cubes=[CubePrimitive(pose=_pose(box), size=Vector3(x=DETECTION_BOX_M[0], y=DETECTION_BOX_M[1],
-                                                                z=DETECTION_BOX_M[2]), color=color)],
-            texts=[TextPrimitive(pose=_pose(label), billboard=True, font_size=14.0, scale_invariant=True,
-                                 color=Color(r=1, g=1, b=1, a=1),
-                                 text=f"{det['target']} {det['score']:.2f} ({det['descriptor']})")],
-        ))
+        color = (
+            Color(r=1.0, g=0.2, b=0.1, a=0.5)
+            if det["target"] == "t72"
+            else Color(r=0.2, g=0.6, b=1.0, a=0.5)
+        )
+        entities.append(
+            SceneEntity(
+                timestamp=_time(message["stamp_ns"]),
+                frame_id="world",
+                id=f"detection-{i}",
+                cubes=[
+                    CubePrimitive(
+                        pose=_pose(box),
+                        size=Vector3(
+                            x=DETECTION_BOX_M[0], y=DETECTION_BOX_M[1], z=DETECTION_BOX_M[2]
+                        ),
+                        color=color,
+                    )
+                ],
+                texts=[
+                    TextPrimitive(
+                        pose=_pose(label),
+                        billboard=True,
+                        font_size=14.0,
+                        scale_invariant=True,
+                        color=Color(r=1, g=1, b=1, a=1),
+                        text=f"{det['target']} {det['score']:.2f} ({det['descriptor']})",
+                    )
+                ],
+            )
+        )
     return SceneUpdate(entities=entities)
 
 
@@ -89,10 +134,14 @@ def export_foxglove(in_path: str | Path, out_path: str | Path) -> dict[str, int]
 
     Raises:
         RecordingError: the input cannot be read.
+
     """
     import foxglove  # noqa: PLC0415
     from foxglove.channels import (  # noqa: PLC0415
-        FrameTransformsChannel, PointCloudChannel, RawImageChannel, SceneUpdateChannel,
+        FrameTransformsChannel,
+        PointCloudChannel,
+        RawImageChannel,
+        SceneUpdateChannel,
     )
     from foxglove.messages import RawImage  # noqa: PLC0415
 
@@ -116,22 +165,48 @@ def export_foxglove(in_path: str | Path, out_path: str | Path) -> dict[str, int]
             parts = topic.split("/")
             try:
                 data = codec.unpack(record.data)
-            except Exception:  # a bad message stays in the original recording; it has nothing to show
+            except (
+                Exception
+            ):  # a bad message stays in the original recording; it has nothing to show
                 continue
             stamp = data.get("stamp_ns", 0) if isinstance(data, dict) else 0
             if topic.endswith("/camera/image"):
                 image = data["data"]
-                log(f"/{parts[1]}/camera/image", RawImageChannel, RawImage(
-                    timestamp=_time(stamp), frame_id="camera", width=int(image.shape[1]),
-                    height=int(image.shape[0]), encoding="rgb8" if image.ndim == 3 else "mono8",
-                    step=int(image.strides[0]), data=image.tobytes()), stamp)
+                log(
+                    f"/{parts[1]}/camera/image",
+                    RawImageChannel,
+                    RawImage(
+                        timestamp=_time(stamp),
+                        frame_id="camera",
+                        width=int(image.shape[1]),
+                        height=int(image.shape[0]),
+                        encoding="rgb8" if image.ndim == 3 else "mono8",
+                        step=int(image.strides[0]),
+                        data=image.tobytes(),
+                    ),
+                    stamp,
+                )
             elif topic.endswith("/sfm/cloud") or topic.endswith("/lidar/cloud"):
-                log("/" + "/".join(parts[1:]), PointCloudChannel, _cloud(stamp, data["points_m"]), stamp)
+                log(
+                    "/" + "/".join(parts[1:]),
+                    PointCloudChannel,
+                    _cloud(stamp, data["points_m"]),
+                    stamp,
+                )
             elif topic.endswith("/pose/camera"):
-                log(f"/{parts[1]}/tf", FrameTransformsChannel, _transform(stamp, "camera", data["T_world_cam"]), stamp)
+                log(
+                    f"/{parts[1]}/tf",
+                    FrameTransformsChannel,
+                    _transform(stamp, "camera", data["T_world_cam"]),
+                    stamp,
+                )
             elif topic.startswith("sim/") and topic.endswith("/truth"):
-                log(f"/{parts[1]}/tf_truth", FrameTransformsChannel,
-                    _transform(stamp, "camera_truth", data["T_world_cam"]), stamp)
+                log(
+                    f"/{parts[1]}/tf_truth",
+                    FrameTransformsChannel,
+                    _transform(stamp, "camera_truth", data["T_world_cam"]),
+                    stamp,
+                )
             elif topic.endswith("/detections"):
                 log(f"/{parts[1]}/detections", SceneUpdateChannel, _detections(data), stamp)
     return counts

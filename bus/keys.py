@@ -24,7 +24,8 @@ _TABLE: list[tuple[str, str]] = [
     ("sim/{uav}/truth", "Truth"),
 ]
 _COMPILED = [
-    (re.compile("^" + re.sub(r"\{\w+\}", r"[^/]+", pattern) + "$"), name) for pattern, name in _TABLE
+    (re.compile("^" + re.sub(r"\{\w+\}", r"[^/]+", pattern) + "$"), name)
+    for pattern, name in _TABLE
 ]
 
 # Keys whose messages are sensor inputs: what a replay publishes back on the bus.
@@ -36,6 +37,7 @@ def message_type(key: str) -> str:
 
     Raises:
         BusError: the key is not one of the contract's key expressions.
+
     """
     for pattern, name in _COMPILED:
         if pattern.match(key):

@@ -39,7 +39,9 @@ class ProcessSpec:
     name: str
     service: str
     args: tuple[str, ...] = ()
-    role: str = "pipeline"  # "hub", "pipeline", "recorder" or "source" (the source is skipped by `atr run`)
+    role: str = (
+        "pipeline"  # "hub", "pipeline", "recorder" or "source" (the source is skipped by `atr run`)
+    )
     host: str = "local"  # which host of a split layout runs it
     zenoh: str | None = None  # this process's own Zenoh config file (default: the layout's)
 
@@ -76,7 +78,9 @@ def _substitute(text: str, variables: dict[str, str]) -> str:
     def value(match: re.Match[str]) -> str:
         name = match.group(1)
         if name not in variables:
-            raise ConfigError(f"layout variable ${{{name}}} is not defined; defined: {sorted(variables)}")
+            raise ConfigError(
+                f"layout variable ${{{name}}} is not defined; defined: {sorted(variables)}"
+            )
         return str(variables[name])
 
     return re.sub(r"\$\{(\w+)\}", value, text)
@@ -87,6 +91,7 @@ def load_layout(name_or_path: str | Path, variables: dict[str, str] | None = Non
 
     Raises:
         ConfigError: unreadable file, unknown variable, or a process without a service.
+
     """
     path = layout_path(name_or_path)
     try:
@@ -146,7 +151,8 @@ class Supervisor:
         self.layout = layout
         self.overrides = list(overrides)
         self.specs = [
-            p for p in layout.processes
+            p
+            for p in layout.processes
             if p.role not in skip_roles and (hosts is None or p.host in hosts)
         ]
         self.log_dir = log_dir
@@ -174,7 +180,9 @@ class Supervisor:
         env.setdefault("NUMBA_THREADING_LAYER", "omp")
         config = spec.zenoh or self.layout.zenoh
         if config:
-            env["ATR_ZENOH_CONFIG"] = str(REPO / config) if not Path(config).is_absolute() else config
+            env["ATR_ZENOH_CONFIG"] = (
+                str(REPO / config) if not Path(config).is_absolute() else config
+            )
         hub = self.layout.variables.get("hub")
         if hub and spec.role != "hub":
             env.setdefault("ATR_ZENOH_CONNECT", hub)
@@ -188,7 +196,11 @@ class Supervisor:
             self._logs.append(out)
         log.info("starting %s: %s", spec.name, " ".join(self._command(spec)[3:]))
         return subprocess.Popen(
-            self._command(spec), env=self._env(spec), cwd=REPO, stdout=out, stderr=out,
+            self._command(spec),
+            env=self._env(spec),
+            cwd=REPO,
+            stdout=out,
+            stderr=out,
             start_new_session=True,
         )
 
@@ -217,7 +229,7 @@ class Supervisor:
                     continue
                 if proc.next_start is None:
                     proc.failures.append(code)
-                    backoff = min(self.max_backoff_s, 0.5 * 2 ** proc.restarts)
+                    backoff = min(self.max_backoff_s, 0.5 * 2**proc.restarts)
                     if now - proc.started > 60:
                         backoff = 0.5  # it ran a good while: a fresh failure, not a crash loop
                     proc.next_start = now + backoff
@@ -236,6 +248,7 @@ class Supervisor:
 
         Returns:
             The exit code of each process.
+
         """
         with self._lock:
             self._stopping = True
@@ -243,7 +256,9 @@ class Supervisor:
             if popen.poll() is None:
                 popen.terminate()
                 popen.wait(grace_s)
-        order = sorted(self.running.values(), key=lambda p: {"hub": 2, "recorder": 1}.get(p.spec.role, 0))
+        order = sorted(
+            self.running.values(), key=lambda p: {"hub": 2, "recorder": 1}.get(p.spec.role, 0)
+        )
         codes: dict[str, int | None] = {}
         for group in (0, 1, 2):
             members = [p for p in order if {"hub": 2, "recorder": 1}.get(p.spec.role, 0) == group]
@@ -265,13 +280,17 @@ class Supervisor:
 
 
 def wait_until_ready(
-    session: zenoh.Session, uav: str, services: list[str], timeout_s: float,
+    session: zenoh.Session,
+    uav: str,
+    services: list[str],
+    timeout_s: float,
     supervisor: Supervisor | None = None,
 ) -> None:
     """Block until every service has published a `running` status.
 
     Raises:
         ConfigError: some services were not ready in time (named in the message).
+
     """
     ready: set[str] = set()
     lock = threading.Lock()

@@ -79,6 +79,7 @@ class ChunkedWriter:
 
     Raises:
         RecordingError: the output cannot be opened.
+
     """
 
     def __init__(
@@ -179,9 +180,9 @@ class ChunkedWriter:
             stats.message_start_time = min(stats.message_start_time, log_time)
             stats.message_end_time = max(stats.message_end_time, log_time)
         stats.message_count += 1
-        stats.channel_message_counts[channel_id] = stats.channel_message_counts.get(
-            channel_id, 0
-        ) + 1
+        stats.channel_message_counts[channel_id] = (
+            stats.channel_message_counts.get(channel_id, 0) + 1
+        )
         self._index.setdefault(channel_id, []).append((log_time, len(self._buf)))
         self._buf += _MESSAGE_HEAD.pack(
             Opcode.MESSAGE,
@@ -210,6 +211,7 @@ class ChunkedWriter:
 
         Raises:
             RecordingError: an earlier background write failed.
+
         """
         self._raise_failure()
         if self._chunk_messages == 0:
@@ -352,7 +354,7 @@ def _record_bytes(record: Any) -> bytes:
 # Reading ---------------------------------------------------------------------------------------
 
 
-class _Truncated(McapError):
+class _TruncatedError(McapError):
     def __init__(self, offset: int, wanted: int, got: int) -> None:
         super().__init__(
             f"file ends at offset {offset + got}: a record needs {wanted - got} more bytes"
@@ -362,17 +364,17 @@ class _Truncated(McapError):
 
 class _StrictStream:
     """A read-only view of a file that raises on a short read (the mcap reader does not) and knows
-    its offset."""
+    its offset.
+    """
 
     def __init__(self, f: IO[bytes]) -> None:
         self._f = f
         self.offset = 0
 
-
     def read(self, n: int = -1) -> bytes:
         data = self._f.read(n)
         if n is not None and n >= 0 and len(data) < n:
-            raise _Truncated(self.offset, n, len(data))
+            raise _TruncatedError(self.offset, n, len(data))
         self.offset += len(data)
         return data
 
@@ -440,13 +442,16 @@ def _walk(
     path: str | Path, *, on_message: Any = None, stop_at_first_problem: bool = False
 ) -> _Walk:
     """One pass over the records of `path`; `on_message(schema, channel, message)` is called in file
-    order."""
+    order.
+    """
     w = _Walk()
     size = os.path.getsize(path)
     with open(path, "rb") as f:
         strict = _StrictStream(f)
         reader = StreamReader(
-            strict, emit_chunks=True, record_size_limit=size  # type: ignore[arg-type]
+            strict,
+            emit_chunks=True,
+            record_size_limit=size,  # type: ignore[arg-type]
         )
         records = reader.records
         in_summary = False
@@ -459,7 +464,7 @@ def _walk(
                 record = next(records)
             except StopIteration:
                 break
-            except _Truncated as exc:
+            except _TruncatedError as exc:
                 w.problems.append(f"truncated: record at offset {start}: {exc}")
                 break
             except InvalidMagic as exc:
@@ -517,7 +522,8 @@ def _walk(
                             )
                         last_log = item.log_time
                 if times and (min(times), max(times)) != (
-                    record.message_start_time, record.message_end_time
+                    record.message_start_time,
+                    record.message_end_time,
                 ):
                     w.problems.append(
                         f"{where}: message time range [{record.message_start_time}, "
@@ -696,6 +702,7 @@ def check(path: str | Path) -> list[str]:
 
     Raises:
         RecordingError: the file cannot be opened.
+
     """
     _require(path)
     w = _walk(path)
@@ -709,7 +716,8 @@ def check(path: str | Path) -> list[str]:
 @dataclass(frozen=True)
 class RecoverResult:
     """What `recover` kept: messages and channels copied, and where the source stopped being
-    readable."""
+    readable.
+    """
 
     messages: int
     channels: int
@@ -725,6 +733,7 @@ def recover(src: str | Path, dst: str | Path) -> RecoverResult:
 
     Raises:
         RecordingError: `src` cannot be opened or is not MCAP at all.
+
     """
     _require(src)
     if Path(src).resolve() == Path(dst).resolve():
@@ -804,6 +813,7 @@ def info(path: str | Path) -> RecordingInfo:
 
     Raises:
         RecordingError: the file cannot be opened or is not MCAP.
+
     """
     _require(path)
     w = _walk(path)
@@ -837,6 +847,7 @@ def iter_messages(path: str | Path) -> Any:
 
     Raises:
         RecordingError: the file cannot be opened.
+
     """
     _require(path)
     out: list[tuple[str, Message]] = []

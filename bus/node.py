@@ -205,7 +205,9 @@ class Node:
         except (SchemaError, BusError) as exc:
             seq, stamp = (attachment[0], attachment[1]) if attachment else (None, None)
             self._count_handled(raw.key)
-            self.report_error(raw.key, exc, input_seq=seq, input_stamp_ns=stamp, input_source=source)
+            self.report_error(
+                raw.key, exc, input_seq=seq, input_stamp_ns=stamp, input_source=source
+            )
             return None
         if source is not None:
             self._check_gap(raw.key, source, int(data["seq"]))
@@ -238,15 +240,24 @@ class Node:
             yield
         except AtrError as exc:
             self.report_error(message.key, exc, message.seq, message.stamp_ns, message.source)
-        except Exception as exc:  # a bug must not kill the service; it is reported with its traceback
-            log.error("unexpected error on %s seq %s:\n%s", message.key, message.seq, traceback.format_exc())
+        except (
+            Exception
+        ) as exc:  # a bug must not kill the service; it is reported with its traceback
+            log.error(
+                "unexpected error on %s seq %s:\n%s",
+                message.key,
+                message.seq,
+                traceback.format_exc(),
+            )
             self.report_error(message.key, exc, message.seq, message.stamp_ns, message.source)
         finally:
             self._count_handled(message.key)
 
     # Outputs ---------------------------------------------------------------------------------
 
-    def publish(self, key: str, data: dict[str, Any], type_name: str | None = None) -> dict[str, Any]:
+    def publish(
+        self, key: str, data: dict[str, Any], type_name: str | None = None
+    ) -> dict[str, Any]:
         """Validate, encode and put `data` on `key`; fills `seq` (per key) and `version` when absent.
 
         Returns:
@@ -254,6 +265,7 @@ class Node:
 
         Raises:
             SchemaError: the message breaks its schema (a bug in the service, not in the input).
+
         """
         type_name = type_name or keys.message_type(key)
         with self._publish_lock:
@@ -261,11 +273,16 @@ class Node:
             message = {"stamp_ns": data.get("stamp_ns", 0), "seq": seq, "version": 1} | data
             payload = codec.encode(type_name, message)
             self._seq_by_key[key] = seq + 1
-            attachment = codec.encode_attachment(message["seq"], message["stamp_ns"], self.source_id)
+            attachment = codec.encode_attachment(
+                message["seq"], message["stamp_ns"], self.source_id
+            )
             # Data: BLOCK, a slow link delays the publisher instead of silently dropping data (§5).
             # Status and timing: DROP, a heartbeat must never hold a service (or its shutdown) up.
-            congestion = (zenoh.CongestionControl.BLOCK if keys.is_data_key(key)
-                          else zenoh.CongestionControl.DROP)
+            congestion = (
+                zenoh.CongestionControl.BLOCK
+                if keys.is_data_key(key)
+                else zenoh.CongestionControl.DROP
+            )
             self.session.put(key, payload, attachment=attachment, congestion_control=congestion)
             self.counters.published += 1
         return message
@@ -281,7 +298,9 @@ class Node:
         """Count, log and publish an ErrorReport about a rejected input."""
         self.counters.errors += 1
         reason = str(exc) or type(exc).__name__
-        log.warning("rejected input on %s (seq %s): %s: %s", key, input_seq, type(exc).__name__, reason)
+        log.warning(
+            "rejected input on %s (seq %s): %s: %s", key, input_seq, type(exc).__name__, reason
+        )
         self.publish(
             keys.service_key(self.uav, self.service, "errors"),
             {
@@ -336,6 +355,7 @@ class Node:
         Raises:
             BusError: no answer within `timeout_s`, or an error reply.
             SchemaError: the answer breaks its schema.
+
         """
         errors = []
         for reply in self.session.get(key, timeout=timeout_s):

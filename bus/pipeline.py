@@ -33,14 +33,17 @@ def free_hub_endpoint() -> str:
 
 
 @contextmanager
-def _running(layout_name: str, out: Path, overrides: list[str], ready_timeout_s: float,
-             result: RunResult) -> Iterator[tuple[Supervisor, zenoh.Session, str]]:
+def _running(
+    layout_name: str, out: Path, overrides: list[str], ready_timeout_s: float, result: RunResult
+) -> Iterator[tuple[Supervisor, zenoh.Session, str]]:
     """The layout (without its source) up and ready, an observer session on its bus, and the vehicle id.
 
     Stops everything on exit and records which processes failed in `result`.
     """
     layout = load_layout(layout_name, {"out": str(out), "hub": free_hub_endpoint()})
-    supervisor = Supervisor(layout, overrides=overrides, skip_roles=("source",), log_dir=result.log_dir)
+    supervisor = Supervisor(
+        layout, overrides=overrides, skip_roles=("source",), log_dir=result.log_dir
+    )
     supervisor.start()
     try:
         session = observer_session(layout)
@@ -57,8 +60,15 @@ def _running(layout_name: str, out: Path, overrides: list[str], ready_timeout_s:
         result.failures |= supervisor.failures()
 
 
-def run_recording(input_path: Path, out: Path, *, layout: str = "local", overrides: list[str] = (),
-                  answer_timeout_s: float = 600.0, ready_timeout_s: float = 900.0) -> RunResult:
+def run_recording(
+    input_path: Path,
+    out: Path,
+    *,
+    layout: str = "local",
+    overrides: list[str] = (),
+    answer_timeout_s: float = 600.0,
+    ready_timeout_s: float = 900.0,
+) -> RunResult:
     """Replay `input_path` through `layout` in lock-step, recording everything into `out`."""
     result = RunResult(log_dir=out.with_suffix(".logs"))
     with _running(layout, out, list(overrides), ready_timeout_s, result) as (_, session, uav):
@@ -68,16 +78,26 @@ def run_recording(input_path: Path, out: Path, *, layout: str = "local", overrid
     return result
 
 
-def fly_layout(out: Path, *, layout: str = "local", overrides: list[str] = (),
-               source_args: list[str] = (), ready_timeout_s: float = 900.0,
-               on_session: Callable[[zenoh.Session], None] | None = None,
-               flight_timeout_s: float = 3600.0) -> RunResult:
+def fly_layout(
+    out: Path,
+    *,
+    layout: str = "local",
+    overrides: list[str] = (),
+    source_args: list[str] = (),
+    ready_timeout_s: float = 900.0,
+    on_session: Callable[[zenoh.Session], None] | None = None,
+    flight_timeout_s: float = 3600.0,
+) -> RunResult:
     """Start the whole layout, its sensor source flying with `source_args`, until the source is done.
 
     `on_session(session)` is called with an observer session before the flight starts (progress display).
     """
     result = RunResult(log_dir=out.with_suffix(".logs"))
-    with _running(layout, out, list(overrides), ready_timeout_s, result) as (supervisor, session, _):
+    with _running(layout, out, list(overrides), ready_timeout_s, result) as (
+        supervisor,
+        session,
+        _,
+    ):
         if on_session is not None:
             on_session(session)
         source = next(p for p in supervisor.layout.processes if p.role == "source")
@@ -96,7 +116,9 @@ def fly_layout(out: Path, *, layout: str = "local", overrides: list[str] = (),
 class FlightWatch:
     """Pairs each Detections message with the truth of its frame as they cross the bus (simulated flights)."""
 
-    def __init__(self, session: object, uav: str, on_scene: Callable[[dict | None, dict], None]) -> None:
+    def __init__(
+        self, session: object, uav: str, on_scene: Callable[[dict | None, dict], None]
+    ) -> None:
         from bus import codec, keys  # noqa: PLC0415
 
         self._truth: dict[int, dict] = {}
@@ -110,8 +132,10 @@ class FlightWatch:
             message = codec.unpack(sample.payload.to_bytes())
             self._on_scene(self._truth.get(message["stamp_ns"]), message)
 
-        self._subs = [session.declare_subscriber(keys.truth(uav), on_truth),
-                      session.declare_subscriber(keys.detections(uav), on_detections)]
+        self._subs = [
+            session.declare_subscriber(keys.truth(uav), on_truth),
+            session.declare_subscriber(keys.detections(uav), on_detections),
+        ]
 
     def close(self) -> None:
         """Stop watching."""

@@ -52,6 +52,7 @@ class RecorderConfig:
             the loss on a crash), seconds.
         zstd_level: zstd level of chunks (1: fastest positive level; see docs/performance/bus.md).
         zstd_threads: zstd worker threads (0 = compress in the writer thread).
+
     """
 
     key_exprs: tuple[str, ...] = DEFAULT_KEY_EXPRS
@@ -100,6 +101,7 @@ class Recorder:
 
     Raises:
         RecordingError: the file cannot be created.
+
     """
 
     def __init__(
@@ -252,6 +254,7 @@ class Recorder:
 
         Raises:
             RecordingError: the file could not be written (the first failure).
+
         """
         if self._closed:
             return self.stats
@@ -284,7 +287,8 @@ def _int_field(message: dict[Any, Any], name: str) -> int:
 
 class RecorderNode(Node):
     """A `Node` whose Status also carries the recorder's figures: counters messages, bytes,
-    channels, gaps, queue_max, unstamped; handled_by_key = messages recorded per topic."""
+    channels, gaps, queue_max, unstamped; handled_by_key = messages recorded per topic.
+    """
 
     recorder: Recorder | None = None
 
@@ -293,8 +297,14 @@ class RecorderNode(Node):
         if self.recorder is None:
             return {}
         s = self.recorder.stats
-        counters = {"messages": s.messages, "bytes": s.bytes, "channels": s.channels, "gaps": s.gaps,
-                    "queue_max": s.queue_max, "unstamped": s.unstamped}
+        counters = {
+            "messages": s.messages,
+            "bytes": s.bytes,
+            "channels": s.channels,
+            "gaps": s.gaps,
+            "queue_max": s.queue_max,
+            "unstamped": s.unstamped,
+        }
         return {"counters": counters, "handled_by_key": self._by_topic()}
 
     def _by_topic(self) -> dict[str, int]:
@@ -322,6 +332,7 @@ def run_recorder(
 
     Raises:
         RecordingError: the file could not be written.
+
     """
     with RecorderNode(service, uav, zenoh_config=zenoh_config) as node:
 

@@ -48,6 +48,7 @@ def write_messages(path: str | Path, messages: Iterable[tuple[str, dict[str, Any
 
     Raises:
         SchemaError: a message breaks its schema.
+
     """
     count = 0
     path = Path(path)
@@ -60,8 +61,11 @@ def write_messages(path: str | Path, messages: Iterable[tuple[str, dict[str, Any
             message = {"stamp_ns": 0, "seq": 0, "version": 1} | data
             payload = codec.encode(keys.message_type(key), message)
             writer.add_message(
-                channel_id=channels.channel_id(key), log_time=message["stamp_ns"], data=payload,
-                publish_time=message["stamp_ns"], sequence=message["seq"],
+                channel_id=channels.channel_id(key),
+                log_time=message["stamp_ns"],
+                data=payload,
+                publish_time=message["stamp_ns"],
+                sequence=message["seq"],
             )
             count += 1
         writer.finish()

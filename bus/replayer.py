@@ -51,7 +51,8 @@ DEFAULT_ANSWER_KEY = "atr/{uav}/detections"
 
 def is_input_topic(topic: str) -> bool:
     """True for the keys a replay publishes (camera images, IMU batches, LIDAR clouds, simulator
-    truth)."""
+    truth).
+    """
     return INPUT_TOPIC.match(topic) is not None
 
 
@@ -86,6 +87,7 @@ class Replayer:
 
     Raises:
         RecordingError: the file is missing, not closed, or holds no input.
+
     """
 
     def __init__(
@@ -130,6 +132,7 @@ class Replayer:
 
         Raises:
             ConfigError: `rate` is not > 0.
+
         """
         if not rate > 0:
             raise ConfigError(f"replay rate {rate} must be > 0")
@@ -164,6 +167,7 @@ class Replayer:
 
         Raises:
             ConfigError: `answer_timeout_s` is not > 0.
+
         """
         if not answer_timeout_s > 0:
             raise ConfigError(f"answer timeout {answer_timeout_s} s must be > 0")
@@ -189,6 +193,7 @@ class Replayer:
 
         Raises:
             ConfigError: unknown mode.
+
         """
         methods = {"recorded": self.recorded, "fast": self.fast, "lock-step": self.lock_step}
         if mode not in methods:
@@ -203,7 +208,8 @@ class Replayer:
 
     def close(self, linger_s: float = 0.3) -> None:
         """Let the last publications leave (`linger_s`), then undeclare and close what this replayer
-        opened."""
+        opened.
+        """
         if linger_s > 0:
             time.sleep(linger_s)
         for pub in self._publishers.values():

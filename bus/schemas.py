@@ -32,6 +32,7 @@ def load(name: str) -> dict[str, Any]:
 
     Raises:
         SchemaError: no schema of that name exists.
+
     """
     path = SCHEMA_DIR / f"{name}.json"
     if not path.is_file():
@@ -56,13 +57,16 @@ def _check_ndarray(validator: Any, spec: dict[str, Any], instance: Any, schema: 
     shape = spec.get("shape")
     if shape is not None:
         if instance.ndim != len(shape) or any(
-            want is not None and want != got for want, got in zip(shape, instance.shape, strict=True)
+            want is not None and want != got
+            for want, got in zip(shape, instance.shape, strict=True)
         ):
             expected = tuple("N" if s is None else s for s in shape)
             yield jsonschema.ValidationError(f"shape {instance.shape} does not match {expected}")
             return
     if spec.get("finite") and instance.dtype.kind == "f" and not np.isfinite(instance).all():
-        yield jsonschema.ValidationError(f"array of shape {instance.shape} has NaN or infinite values")
+        yield jsonschema.ValidationError(
+            f"array of shape {instance.shape} has NaN or infinite values"
+        )
 
 
 def _is_object(checker: Any, instance: Any) -> bool:
@@ -87,6 +91,7 @@ def validate(name: str, message: dict[str, Any]) -> None:
 
     Raises:
         SchemaError: naming the first offending field and what was expected.
+
     """
     error = jsonschema.exceptions.best_match(validator(name).iter_errors(message))
     if error is not None:

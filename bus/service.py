@@ -27,11 +27,23 @@ def service_arguments(name: str, description: str | None) -> argparse.ArgumentPa
         description=description,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--uav", default="uav1", help="vehicle id in the key expressions (default uav1)")
-    parser.add_argument("--zenoh", metavar="JSON5", help="Zenoh config file (default: ATR_ZENOH_CONFIG, or peer on loopback)")
-    parser.add_argument("--config", metavar="YAML", help="config file of nested groups (see atr/config.py)")
     parser.add_argument(
-        "--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE",
+        "--uav", default="uav1", help="vehicle id in the key expressions (default uav1)"
+    )
+    parser.add_argument(
+        "--zenoh",
+        metavar="JSON5",
+        help="Zenoh config file (default: ATR_ZENOH_CONFIG, or peer on loopback)",
+    )
+    parser.add_argument(
+        "--config", metavar="YAML", help="config file of nested groups (see atr/config.py)"
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="GROUP.FIELD=VALUE",
         help="override one config field, e.g. --set sfm.matcher=surf (repeatable)",
     )
     return parser

@@ -42,6 +42,7 @@ def load_config(config_path: str | Path | None = None) -> dict[str, Any]:
 
     Raises:
         ConfigError: the file is missing or not valid JSON5.
+
     """
     path = config_path or os.environ.get("ATR_ZENOH_CONFIG")
     if path:
@@ -65,6 +66,7 @@ def open_session(config: dict[str, Any] | str | Path | None = None) -> zenoh.Ses
 
     Raises:
         BusError: Zenoh refused the config or could not open the session.
+
     """
     as_dict = config if isinstance(config, dict) else load_config(config)
     try:

@@ -6,6 +6,7 @@ only what it needs: ca.pem, air-<uav>.pem, air-<uav>.key and zenoh/split-air*.js
 Examples:
     atr certs --out deploy --ground 10.0.0.1
     atr certs --out deploy --ground ground.example.org --uav uav2 --matcher-on-air
+
 """
 
 from __future__ import annotations
@@ -17,16 +18,31 @@ from pathlib import Path
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr certs`."""
     parser.add_argument("--out", type=Path, required=True, help="folder to write (created)")
-    parser.add_argument("--ground", required=True, help="the ground router's address as the air reaches it")
-    parser.add_argument("--uav", default="uav1", help="vehicle id the air certificate may publish for")
+    parser.add_argument(
+        "--ground", required=True, help="the ground router's address as the air reaches it"
+    )
+    parser.add_argument(
+        "--uav", default="uav1", help="vehicle id the air certificate may publish for"
+    )
     parser.add_argument("--port", type=int, default=7447, help="the ground router's TLS port")
     parser.add_argument("--air-port", type=int, default=7448, help="the air router's loopback port")
-    parser.add_argument("--matcher-on-air", action="store_true",
-                        help="the layout runs atr_matcher on the air: the air may publish detections")
-    parser.add_argument("--images-to-ground", action="store_true",
-                        help="let camera images cross the radio link (off: they stay on the air)")
-    parser.add_argument("--host", dest="extra_hosts", action="append", default=[],
-                        help="another name or address of the ground router (repeatable)")
+    parser.add_argument(
+        "--matcher-on-air",
+        action="store_true",
+        help="the layout runs atr_matcher on the air: the air may publish detections",
+    )
+    parser.add_argument(
+        "--images-to-ground",
+        action="store_true",
+        help="let camera images cross the radio link (off: they stay on the air)",
+    )
+    parser.add_argument(
+        "--host",
+        dest="extra_hosts",
+        action="append",
+        default=[],
+        help="another name or address of the ground router (repeatable)",
+    )
     parser.add_argument("--days", type=int, default=825, help="certificate lifetime, days")
 
 
@@ -35,12 +51,20 @@ def run(args: argparse.Namespace) -> int:
     from bus.certs import make_deployment  # noqa: PLC0415
 
     deployment = make_deployment(
-        args.out, ground=args.ground, uav=args.uav, port=args.port, air_port=args.air_port,
-        matcher_on_air=args.matcher_on_air, images_to_ground=args.images_to_ground,
-        extra_hosts=args.extra_hosts, days=args.days,
+        args.out,
+        ground=args.ground,
+        uav=args.uav,
+        port=args.port,
+        air_port=args.air_port,
+        matcher_on_air=args.matcher_on_air,
+        images_to_ground=args.images_to_ground,
+        extra_hosts=args.extra_hosts,
+        days=args.days,
     )
     for path in sorted(deployment.root.rglob("*")):
         if path.is_file():
             print(path.relative_to(deployment.root))
-    print(f"start with: atr up split --host ground --var deploy={args.out}  (and --host air on the aircraft)")
+    print(
+        f"start with: atr up split --host ground --var deploy={args.out}  (and --host air on the aircraft)"
+    )
     return 0

@@ -8,6 +8,7 @@ Examples:
     atr demo
     atr demo --frames 10 --set recognition.descriptor=fpfh
     atr demo --scenario 2 --run 1 --set sfm.matcher=surf
+
 """
 
 from __future__ import annotations
@@ -20,10 +21,16 @@ from pathlib import Path
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr demo`."""
     parser.add_argument("--scenario", type=int, default=1)
-    parser.add_argument("--run", type=int, default=3, help="run 3 of scenario 1 is 30 deg obliquity")
-    parser.add_argument("--frames", type=int, default=21, help="frames to fly (scenes = frames - pair gap)")
+    parser.add_argument(
+        "--run", type=int, default=3, help="run 3 of scenario 1 is 30 deg obliquity"
+    )
+    parser.add_argument(
+        "--frames", type=int, default=21, help="frames to fly (scenes = frames - pair gap)"
+    )
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE")
+    parser.add_argument(
+        "--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE"
+    )
     parser.add_argument("--out", type=Path, help="recording (default runs/demo-<time>/flight.mcap)")
 
 
@@ -34,19 +41,33 @@ def run(args: argparse.Namespace) -> int:
 
     out = args.out or Path("runs") / time.strftime("demo-%Y%m%d-%H%M%S") / "flight.mcap"
     out.parent.mkdir(parents=True, exist_ok=True)
-    print(f"demo: scenario {args.scenario} run {args.run}, {args.frames} frames; starting the services "
-          "(the first run builds the templates and compiles the kernels: a minute or two)", flush=True)
+    print(
+        f"demo: scenario {args.scenario} run {args.run}, {args.frames} frames; starting the services "
+        "(the first run builds the templates and compiles the kernels: a minute or two)",
+        flush=True,
+    )
     printer = FlightPrinter()
     result = fly_layout(
-        out, overrides=args.overrides,
-        source_args=["--scenario", str(args.scenario), "--run", str(args.run),
-                     "--frames", str(args.frames), "--seed", str(args.seed)],
+        out,
+        overrides=args.overrides,
+        source_args=[
+            "--scenario",
+            str(args.scenario),
+            "--run",
+            str(args.run),
+            "--frames",
+            str(args.frames),
+            "--seed",
+            str(args.seed),
+        ],
         on_session=printer.attach,
     )
     printer.detach()
     counts = summarise(out)
-    print(f"\nF1 {counts.f1:.3f} (TP {counts.tp}, FP {counts.fp}, FN {counts.fn}, TN {counts.tn}) over "
-          f"{counts.tp + counts.fp + counts.fn + counts.tn} scenes")
+    print(
+        f"\nF1 {counts.f1:.3f} (TP {counts.tp}, FP {counts.fp}, FN {counts.fn}, TN {counts.tn}) over "
+        f"{counts.tp + counts.fp + counts.fn + counts.tn} scenes"
+    )
     print(f"recording: {out}")
     from bus.foxglove_export import export_foxglove  # noqa: PLC0415
 
@@ -54,5 +75,7 @@ def run(args: argparse.Namespace) -> int:
     export_foxglove(out, foxglove_path)
     print(f"for Foxglove: {foxglove_path}")
     for name, codes in result.failures.items():
-        print(f"process {name} failed (exit codes {codes}); its log: {result.log_dir / (name + '.log')}")
+        print(
+            f"process {name} failed (exit codes {codes}); its log: {result.log_dir / (name + '.log')}"
+        )
     return 1 if result.failures else 0

@@ -217,7 +217,9 @@ def _templates_3d(plan_: Plan) -> None:
             continue
         config = arm_config(plan_.config, arm)
         store = TemplateStore(config, REPO / "templates")
-        templates = [template_from_message(store.message(name, arm.descriptor)) for name in store.meshes]
+        templates = [
+            template_from_message(store.message(name, arm.descriptor)) for name in store.meshes
+        ]
         plan_.templates_3d[arm.descriptor] = templates
         target = next((t for t in templates if t.target == plan_.flights[0].target), templates[0])
         kb = (target.descriptors.nbytes + target.keypoints_m.nbytes) / 1024

@@ -15,24 +15,35 @@ TARGET = "t72"
 def score(truth: dict | None, detections: dict, target: str = TARGET) -> SceneScore:
     """Judge one scene from its Truth and Detections messages."""
     # The truth lists only the targets present in the scene (sensor_source applies the visibility rule).
-    true_positions = [np.asarray(t["T_world_target"])[:3, 3] for t in (truth or {}).get("targets", [])
-                      if t["name"] == target]
-    hypotheses = sorted((d for d in detections["detections"] if d["target"] == target),
-                        key=lambda d: -d["score"])
+    true_positions = [
+        np.asarray(t["T_world_target"])[:3, 3]
+        for t in (truth or {}).get("targets", [])
+        if t["name"] == target
+    ]
+    hypotheses = sorted(
+        (d for d in detections["detections"] if d["target"] == target), key=lambda d: -d["score"]
+    )
     return score_scene(true_positions, [np.asarray(d["T_world_target"])[:3, 3] for d in hypotheses])
 
 
 def scene_line(truth: dict | None, detections: dict) -> str:
     """One human line: frames, what was recognised where, and the verdict against truth."""
     frames = "-".join(str(f) for f in detections.get("frame_seqs", []))
-    found = ", ".join(
-        f"{d['target']} at ({d['T_world_target'][0][3]:.1f}, {d['T_world_target'][1][3]:.1f}) "
-        f"overlap {d['overlap']:.2f}"
-        for d in detections["detections"]
-    ) or "nothing"
+    found = (
+        ", ".join(
+            f"{d['target']} at ({d['T_world_target'][0][3]:.1f}, {d['T_world_target'][1][3]:.1f}) "
+            f"overlap {d['overlap']:.2f}"
+            for d in detections["detections"]
+        )
+        or "nothing"
+    )
     verdict = score(truth, detections)
     visible = max((t["visible_fraction"] for t in (truth or {}).get("targets", [])), default=0.0)
-    error = f", error {verdict.translation_error_m:.2f} m" if np.isfinite(verdict.translation_error_m) else ""
+    error = (
+        f", error {verdict.translation_error_m:.2f} m"
+        if np.isfinite(verdict.translation_error_m)
+        else ""
+    )
     return f"scene {frames:>7}: {found:<58} | target visible {visible:4.0%} -> {verdict.outcome.upper()}{error}"
 
 
@@ -51,7 +62,9 @@ class FlightPrinter:
 
     @staticmethod
     def _print(truth: dict | None, detections: dict) -> None:
-        if len(detections.get("frame_seqs", [])) == 2:  # a first frame without a partner is no scene
+        if (
+            len(detections.get("frame_seqs", [])) == 2
+        ):  # a first frame without a partner is no scene
             print(scene_line(truth, detections), flush=True)
 
     def detach(self) -> None:

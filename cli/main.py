@@ -7,6 +7,7 @@ Examples:
     atr demo                                   # simulated flight end to end over the bus
     atr simulate --scenario 1 --run 3 --frames 20 --out flight.mcap
     atr run flight.mcap --out result.mcap      # replay in lock-step through the service graph
+
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ Examples:
     atr mcap info runs/flight.mcap
     atr mcap check runs/flight.mcap || echo "broken"
     atr mcap recover runs/crashed.mcap runs/crashed-recovered.mcap
+
 """
 
 from __future__ import annotations
@@ -30,7 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     recover.add_argument("src", metavar="IN")
     recover.add_argument("dst", metavar="OUT")
     export = sub.add_parser(
-        "export-foxglove", help="write a copy with Foxglove's schemas (images, clouds, poses, detections)"
+        "export-foxglove",
+        help="write a copy with Foxglove's schemas (images, clouds, poses, detections)",
     )
     export.add_argument("src", metavar="IN")
     export.add_argument("dst", metavar="OUT")

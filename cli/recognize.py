@@ -1,4 +1,4 @@
-"""Run the 3D matcher (paper §II-B-2) on a model file and a scene file, and print what it recognised.
+r"""Run the 3D matcher (paper §II-B-2) on a model file and a scene file, and print what it recognised.
 
 The model is a point cloud (used as the viewed model P_m) or a mesh (a CAD model: sampled, hidden points
 removed from aerial viewpoints, §II-A). The scene is a point cloud or a mesh (sampled). Files: PCD, PLY, XYZ,
@@ -13,6 +13,7 @@ Examples:
 With --json the output is one JSON object (a contract tools rely on):
     {"detections": [{"target", "descriptor", "T_world_target", "score", "overlap", "inliers"}],
      "stage_times_ms": {...}, "resolution_m": R, "stats": {...}}
+
 """
 
 from __future__ import annotations
@@ -44,7 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="subsampling resolution in metres, or 'auto': the paper's 0.3 m for vehicle-sized models "
         f"(>= {VEHICLE_EXTENT_M} m), else {AUTO_SPACING_FACTOR:g} x the model's mean point spacing",
     )
-    parser.add_argument("--target", default=None, help="target name (default: the model's file stem)")
+    parser.add_argument(
+        "--target", default=None, help="target name (default: the model's file stem)"
+    )
     parser.add_argument("--seed", type=int, default=0, help="RANSAC seed (default 0)")
     parser.add_argument(
         "--viewpoint",
@@ -128,7 +131,9 @@ def run(args: argparse.Namespace) -> int:
         )
     if scene.is_mesh:
         density = 1.0 / (0.25 * resolution) ** 2  # several samples per voxel
-        scene_points, _ = sample_mesh_surface(scene.points, scene.triangles, density, seed=args.seed)
+        scene_points, _ = sample_mesh_surface(
+            scene.points, scene.triangles, density, seed=args.seed
+        )
     else:
         scene_points = scene.points
     result = recognize(scene_points, [template], config, seed=args.seed, viewpoint_m=viewpoint)
@@ -154,5 +159,7 @@ def run(args: argparse.Namespace) -> int:
         )
         for row in np.asarray(d.T_world_target):
             print("    " + " ".join(f"{v: .6f}" for v in row))
-    print("stage times (ms): " + ", ".join(f"{k} {v:.1f}" for k, v in result.stage_times_ms.items()))
+    print(
+        "stage times (ms): " + ", ".join(f"{k} {v:.1f}" for k, v in result.stage_times_ms.items())
+    )
     return 0

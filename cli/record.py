@@ -8,6 +8,7 @@ Examples:
     atr record --out runs/flight.mcap            # default Zenoh session (ATR_ZENOH_* env)
     atr record --out runs/ground.mcap --zenoh compose/zenoh/local.json5
     atr record --out runs/uav2.mcap --uav uav2 --flush-interval 0.5
+
 """
 
 from __future__ import annotations
@@ -28,7 +29,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--service", default="recorder", help="service name of its status/errors keys"
     )
     parser.add_argument(
-        "--key", action="append", dest="keys", metavar="KEYEXPR",
+        "--key",
+        action="append",
+        dest="keys",
+        metavar="KEYEXPR",
         help="key expression to record (repeatable; default atr/** and sim/**)",
     )
     parser.add_argument("--chunk-size", type=int, default=8 * 1024 * 1024, help="chunk size, bytes")

@@ -10,6 +10,7 @@ Examples:
     atr replay runs/flight.mcap                  # at recorded speed
     atr replay runs/flight.mcap --rate 4 --zenoh compose/zenoh/local.json5
     atr replay runs/flight.mcap --lock-step --wait-for sfm --wait-for atr_matcher
+
 """
 
 from __future__ import annotations
@@ -41,7 +42,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--answer-timeout", type=float, default=60.0, help="lock-step wait per frame, s"
     )
     parser.add_argument(
-        "--wait-for", action="append", default=[], metavar="SERVICE",
+        "--wait-for",
+        action="append",
+        default=[],
+        metavar="SERVICE",
         help="wait for this service's Status before starting (repeatable)",
     )
     parser.add_argument(

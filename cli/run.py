@@ -9,6 +9,7 @@ Examples:
     atr run flight.mcap --out result.mcap
     atr run flight.mcap --out fpfh.mcap --set recognition.descriptor=fpfh
     atr run flight.mcap --out surf.mcap --set sfm.matcher=surf --layout local
+
 """
 
 from __future__ import annotations
@@ -22,19 +23,35 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", type=Path, help="recording whose sensor messages are replayed")
     parser.add_argument("--out", type=Path, required=True, help="recording of the whole run")
     parser.add_argument("--layout", default="local", help="layout name in compose/ or a file")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE")
-    parser.add_argument("--answer-timeout", type=float, default=600.0, help="lock-step wait per frame, s")
-    parser.add_argument("--ready-timeout", type=float, default=900.0,
-                        help="wait for services to be ready (first template build included), s")
+    parser.add_argument(
+        "--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE"
+    )
+    parser.add_argument(
+        "--answer-timeout", type=float, default=600.0, help="lock-step wait per frame, s"
+    )
+    parser.add_argument(
+        "--ready-timeout",
+        type=float,
+        default=900.0,
+        help="wait for services to be ready (first template build included), s",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the replay; 0 when every process stayed up and every frame was answered."""
     from bus.pipeline import run_recording  # noqa: PLC0415
 
-    result = run_recording(args.input, args.out, layout=args.layout, overrides=args.overrides,
-                           answer_timeout_s=args.answer_timeout, ready_timeout_s=args.ready_timeout)
+    result = run_recording(
+        args.input,
+        args.out,
+        layout=args.layout,
+        overrides=args.overrides,
+        answer_timeout_s=args.answer_timeout,
+        ready_timeout_s=args.ready_timeout,
+    )
     print(f"replayed {result.frames} frames ({result.timeouts} unanswered) into {args.out}")
     for name, codes in result.failures.items():
-        print(f"process {name} failed with exit codes {codes}; see {result.log_dir / (name + '.log')}")
+        print(
+            f"process {name} failed with exit codes {codes}; see {result.log_dir / (name + '.log')}"
+        )
     return 1 if result.failures or result.timeouts else 0

@@ -4,6 +4,7 @@ Examples:
     atr service sfm --uav uav1 --set sfm.matcher=surf
     atr service router --listen tcp/127.0.0.1:7447
     atr service atr_matcher --help
+
 """
 
 from __future__ import annotations

@@ -7,6 +7,7 @@ Examples:
     atr simulate --scenario 1 --run 3 --frames 20 --out flight.mcap
     atr simulate --scenario 3 --run 1 --lidar --noise gaussian:10 --out s3.mcap
     atr simulate --scenario 2 --run 1 --target-mesh my_tank.ply --out custom.mcap
+
 """
 
 from __future__ import annotations
@@ -21,7 +22,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     add_flight_arguments(parser)
     parser.add_argument("--uav", default="uav1", help="vehicle id in the keys")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE")
+    parser.add_argument(
+        "--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE"
+    )
     parser.add_argument("--out", type=Path, required=True, help="output MCAP file")
 
 
@@ -32,13 +35,29 @@ def run(args: argparse.Namespace) -> int:
     from services.sensor_source.main import flight_frames, frame_messages  # noqa: PLC0415
 
     config = load_config(None, args.overrides)
-    frames = flight_frames(config, args.scenario, args.run, args.frames, args.seed, args.lidar,
-                           args.noise, args.target_mesh, tuple(args.clutter_mesh))
+    frames = flight_frames(
+        config,
+        args.scenario,
+        args.run,
+        args.frames,
+        args.seed,
+        args.lidar,
+        args.noise,
+        args.target_mesh,
+        tuple(args.clutter_mesh),
+    )
 
     def messages():  # noqa: ANN202
         for index, frame in enumerate(frames):
-            yield from frame_messages(frame, args.uav, args.scenario, args.run, args.seed, index == 0,
-                                      config.sim.present_min_visible_fraction)
+            yield from frame_messages(
+                frame,
+                args.uav,
+                args.scenario,
+                args.run,
+                args.seed,
+                index == 0,
+                config.sim.present_min_visible_fraction,
+            )
 
     count = write_messages(args.out, messages())
     print(f"wrote {count} messages to {args.out}")

@@ -7,6 +7,7 @@ Examples:
     atr up                                    # compose/local.yml
     atr up local --var out=runs/today.mcap --set recognition.descriptor=fpfh
     atr up split --host ground                # only the ground host's processes
+
 """
 
 from __future__ import annotations
@@ -18,11 +19,23 @@ import threading
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr up`."""
-    parser.add_argument("layout", nargs="?", default="local", help="layout name in compose/ or a file")
-    parser.add_argument("--var", action="append", default=[], metavar="NAME=VALUE", help="layout variable")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE",
-                        help="config override passed to every pipeline service")
-    parser.add_argument("--host", action="append", help="start only the processes of this host (repeatable)")
+    parser.add_argument(
+        "layout", nargs="?", default="local", help="layout name in compose/ or a file"
+    )
+    parser.add_argument(
+        "--var", action="append", default=[], metavar="NAME=VALUE", help="layout variable"
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="GROUP.FIELD=VALUE",
+        help="config override passed to every pipeline service",
+    )
+    parser.add_argument(
+        "--host", action="append", help="start only the processes of this host (repeatable)"
+    )
     parser.add_argument("--no-source", action="store_true", help="leave out the sensor source")
 
 
@@ -48,13 +61,19 @@ def run(args: argparse.Namespace) -> int:
 
     setup_logging("up")
     layout = load_layout(args.layout, parse_vars(args.var))
-    supervisor = Supervisor(layout, overrides=args.overrides, hosts=tuple(args.host) if args.host else None,
-                            skip_roles=("source",) if args.no_source else ())
+    supervisor = Supervisor(
+        layout,
+        overrides=args.overrides,
+        hosts=tuple(args.host) if args.host else None,
+        skip_roles=("source",) if args.no_source else (),
+    )
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
     supervisor.start()
-    logging.getLogger("atr").info("layout %s up: %s", layout.name, [p.name for p in supervisor.specs])
+    logging.getLogger("atr").info(
+        "layout %s up: %s", layout.name, [p.name for p in supervisor.specs]
+    )
     while not stop.wait(0.5):
         supervisor.poll()
     supervisor.stop()

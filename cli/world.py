@@ -13,6 +13,7 @@ Examples:
     atr world export --out meshes
     atr world export --out meshes --format obj
     atr world export --out meshes --world --scenario 3 --run 1 --seed 2
+
 """
 
 from __future__ import annotations
@@ -25,13 +26,19 @@ from pathlib import Path
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr world`."""
     sub = parser.add_subparsers(dest="world_command", metavar="ACTION", required=True)
-    exp = sub.add_parser("export", help="write vehicle (and world) meshes to a folder",
-                         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    exp = sub.add_parser(
+        "export",
+        help="write vehicle (and world) meshes to a folder",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     exp.add_argument("--out", type=Path, required=True, help="output folder")
-    exp.add_argument("--format", choices=("ply", "obj", "stl"), default="ply",
-                     help="mesh file format")
-    exp.add_argument("--world", action="store_true",
-                     help="also export the world of one scenario run")
+    exp.add_argument(
+        "--format", choices=("ply", "obj", "stl"), default="ply", help="mesh file format"
+    )
+    exp.add_argument(
+        "--world", action="store_true", help="also export the world of one scenario run"
+    )
     exp.add_argument("--scenario", type=int, default=1, help="Table II scenario (1, 2, 3)")
     exp.add_argument("--run", type=int, default=3, help="run within the scenario (1-based)")
     exp.add_argument("--seed", type=int, default=0, help="world seed")
@@ -55,11 +62,18 @@ def run(args: argparse.Namespace) -> int:
         save_mesh(world.target, folder / f"target.{args.format}")
         o = world.orbit
         meta = {
-            "scenario": sc.scenario, "run": sc.run, "seed": args.seed,
+            "scenario": sc.scenario,
+            "run": sc.run,
+            "seed": args.seed,
             "target_name": world.target_name,
-            "T_world_target": world.T_world_target.tolist(), "sun_dir": world.sun_dir.tolist(),
-            "orbit": {"center_m": o.center.tolist(), "radius_m": o.radius_m, "height_m": o.height_m,
-                      "rate_radps": o.rate_radps},
+            "T_world_target": world.T_world_target.tolist(),
+            "sun_dir": world.sun_dir.tolist(),
+            "orbit": {
+                "center_m": o.center.tolist(),
+                "radius_m": o.radius_m,
+                "height_m": o.height_m,
+                "rate_radps": o.rate_radps,
+            },
             "occluder_width_m": world.occluder_width_m,
             "static_triangles": world.static.n_triangles,
         }

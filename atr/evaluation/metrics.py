@@ -29,6 +29,7 @@ class SceneScore:
         outcome: "tp", "fp" (a hypothesis without target, or >= 2 m off the target), "fn", or "tn".
         translation_error_m: distance between the true and estimated target positions (NaN without both).
         has_target: the scene has the target.
+
     """
 
     outcome: Outcome
@@ -52,6 +53,7 @@ def score_scene(
 
     Returns:
         The scene's score.
+
     """
     has_target = len(true_positions_m) > 0
     if not hypothesis_positions_m:

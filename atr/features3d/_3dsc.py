@@ -40,10 +40,13 @@ def bin_edges(
     Returns:
         radial (J+1,) metres, elevation (E+1,) degrees, azimuth (L+1,) degrees, all float32 values held in
         float64; inv_cbrt_volume (L·E·J,) float64 in the flattened bin order.
+
     """
     J, E, L = config.radial_bins, config.elevation_bins, config.azimuth_bins
     j = np.arange(J + 1, dtype=np.float64)
-    radial = np.exp(np.log(minimal_radius) + (j / J) * np.log(radius / minimal_radius)).astype(np.float32)
+    radial = np.exp(np.log(minimal_radius) + (j / J) * np.log(radius / minimal_radius)).astype(
+        np.float32
+    )
     elevation = (np.arange(E + 1) * (180.0 / E)).astype(np.float32)
     azimuth = (np.arange(L + 1) * (360.0 / L)).astype(np.float32)
     r = radial.astype(np.float64)
@@ -68,8 +71,20 @@ def _lower_bin(edges: np.ndarray, value: float) -> int:
 
 @numba.njit(cache=True, parallel=True)
 def _shape_context_all(
-    points, centres, frames, offsets, indices, sq_dists, density, r_edges, th_edges, phi_edges, inv_vol,
-    n_el, n_rad, min_nb,
+    points,
+    centres,
+    frames,
+    offsets,
+    indices,
+    sq_dists,
+    density,
+    r_edges,
+    th_edges,
+    phi_edges,
+    inv_vol,
+    n_el,
+    n_rad,
+    min_nb,
 ):
     k = centres.shape[0]
     length = inv_vol.shape[0]
@@ -99,8 +114,12 @@ def _shape_context_all(
             cx = xa[1] * proj[2] - xa[2] * proj[1]
             cy = xa[2] * proj[0] - xa[0] * proj[2]
             cz = xa[0] * proj[1] - xa[1] * proj[0]
-            phi = math.degrees(math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz),
-                                          xa[0] * proj[0] + xa[1] * proj[1] + xa[2] * proj[2]))
+            phi = math.degrees(
+                math.atan2(
+                    math.sqrt(cx * cx + cy * cy + cz * cz),
+                    xa[0] * proj[0] + xa[1] * proj[1] + xa[2] * proj[2],
+                )
+            )
             if cx * nz[0] + cy * nz[1] + cz * nz[2] < 0:
                 phi = 360.0 - phi
             theta = math.degrees(math.acos(min(1.0, max(-1.0, vn / r))))
@@ -138,6 +157,7 @@ def shape_context_histograms(
 
     Returns:
         (K, L·E·J) float32.
+
     """
     if not 0 < minimal_radius < radius:
         raise ConfigError(f"minimal_radius {minimal_radius} m must be in (0, {radius}) m")
@@ -149,8 +169,19 @@ def shape_context_histograms(
     if used.size:
         density[used] = RadiusSearch(points, point_density_radius).count(points[used])
     return _shape_context_all(
-        points, centres, np.ascontiguousarray(frames, dtype=np.float64), nb.offsets, nb.indices,
-        nb.sq_dists, density, r_e, th_e, phi_e, inv, config.elevation_bins, config.radial_bins,
+        points,
+        centres,
+        np.ascontiguousarray(frames, dtype=np.float64),
+        nb.offsets,
+        nb.indices,
+        nb.sq_dists,
+        density,
+        r_e,
+        th_e,
+        phi_e,
+        inv,
+        config.elevation_bins,
+        config.radial_bins,
         config.min_neighbours,
     )
 
@@ -181,8 +212,9 @@ def _random_x_axes(normals_k: np.ndarray, drawn: np.ndarray, seed: int) -> np.nd
     return x
 
 
-def _farthest_x_axes(points: np.ndarray, centres: np.ndarray, normals_k: np.ndarray,
-                     nb: Neighbourhoods) -> np.ndarray:
+def _farthest_x_axes(
+    points: np.ndarray, centres: np.ndarray, normals_k: np.ndarray, nb: Neighbourhoods
+) -> np.ndarray:
     x = np.full(centres.shape, np.nan)
     counts = nb.counts()
     for i in np.flatnonzero(counts > 0):
@@ -226,6 +258,7 @@ def shape_context_3d(
         x_axis: "random" (released PCL) or "farthest" (PCL master, deterministic).
         azimuth_bins, elevation_bins, radial_bins: override the config's bins.
         config: defaults of the above.
+
     """
     points, keypoints = _check(points, keypoints, radius)
     if normals is None:
@@ -237,7 +270,11 @@ def shape_context_3d(
         raise ConfigError(f"x_axis {x_axis!r} must be 'random' or 'farthest'")
     cfg = _with_bins(config, azimuth_bins, elevation_bins, radial_bins)
     r_min = cfg.k_minimal_radius * radius if minimal_radius is None else float(minimal_radius)
-    r_dens = cfg.k_point_density_radius * radius if point_density_radius is None else float(point_density_radius)
+    r_dens = (
+        cfg.k_point_density_radius * radius
+        if point_density_radius is None
+        else float(point_density_radius)
+    )
     centres = points[keypoints]
     nb = RadiusSearch(points, radius).query(centres, sort=True)
     n_k = normals[keypoints]
@@ -252,7 +289,9 @@ def shape_context_3d(
     return shape_context_histograms(points, centres, frames, nb, radius, r_min, r_dens, cfg)
 
 
-def azimuth_rotations(descriptors: np.ndarray, azimuth_bins: int = SC3D_DEFAULT.azimuth_bins) -> np.ndarray:
+def azimuth_rotations(
+    descriptors: np.ndarray, azimuth_bins: int = SC3D_DEFAULT.azimuth_bins
+) -> np.ndarray:
     """All cyclic azimuth shifts of shape-context descriptors (Frome et al.'s L rotations for matching).
 
     Args:
@@ -261,16 +300,21 @@ def azimuth_rotations(descriptors: np.ndarray, azimuth_bins: int = SC3D_DEFAULT.
 
     Returns:
         (L, K, L·E·J): entry s is each descriptor rotated by s azimuth sectors.
+
     """
     d = np.asarray(descriptors)
     k, length = d.shape
     if length % azimuth_bins:
-        raise InputError(f"descriptor length {length} is not a multiple of {azimuth_bins} azimuth bins")
+        raise InputError(
+            f"descriptor length {length} is not a multiple of {azimuth_bins} azimuth bins"
+        )
     blocks = d.reshape(k, azimuth_bins, -1)
     return np.stack([np.roll(blocks, s, axis=1).reshape(k, length) for s in range(azimuth_bins)])
 
 
-def _with_bins(config: ShapeContextConfig, az: int | None, el: int | None, rad: int | None) -> ShapeContextConfig:
+def _with_bins(
+    config: ShapeContextConfig, az: int | None, el: int | None, rad: int | None
+) -> ShapeContextConfig:
     return ShapeContextConfig(
         azimuth_bins=config.azimuth_bins if az is None else int(az),
         elevation_bins=config.elevation_bins if el is None else int(el),

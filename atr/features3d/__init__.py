@@ -73,9 +73,11 @@ def estimate_normals(
     Raises:
         ConfigError: both k and radius given, k < 3, or radius <= 0.
         InputError: points not (N, 3), or viewpoint not finite.
+
     """
-    normals, _ = estimate_normals_and_curvature(points, k=k, radius=radius, viewpoint=viewpoint,
-                                                config=NormalConfig())
+    normals, _ = estimate_normals_and_curvature(
+        points, k=k, radius=radius, viewpoint=viewpoint, config=NormalConfig()
+    )
     return normals
 
 
@@ -93,6 +95,7 @@ def shot_lrf(points: np.ndarray, keypoints: np.ndarray, radius: float) -> np.nda
 
     Raises:
         InputError: bad shapes, indices out of range, radius <= 0.
+
     """
     from atr.features3d._shot import shot_lrf as _shot_lrf
 
@@ -142,6 +145,7 @@ def describe(
     Raises:
         ConfigError: unknown name or parameter, or the descriptor's module is not installed.
         InputError: bad shapes, indices out of range, radius <= 0, missing normals where needed.
+
     """
     if name not in _DISPATCH:
         raise ConfigError(f"descriptor {name!r} is not one of {DESCRIPTOR_NAMES}")
@@ -151,7 +155,9 @@ def describe(
     except ModuleNotFoundError as exc:
         if exc.name != module_name:
             raise
-        raise ConfigError(f"descriptor {name!r} is not implemented in this checkout ({module_name})") from exc
+        raise ConfigError(
+            f"descriptor {name!r} is not implemented in this checkout ({module_name})"
+        ) from exc
     func = getattr(module, func_name)
     if needs_normals and normals is None:
         raise InputError(f"descriptor {name!r} needs normals; got None")

@@ -71,6 +71,7 @@ def keypoint_coordinates(points: np.ndarray, keypoints: np.ndarray) -> np.ndarra
 
     Raises:
         InputError: wrong shape, or an index outside [0, N).
+
     """
     kp = np.asarray(keypoints)
     if kp.ndim == 1 and (kp.size == 0 or np.issubdtype(kp.dtype, np.integer)):
@@ -115,6 +116,7 @@ class Grid:
     Args:
         pts: (N, 3) float32, metres.
         radius: largest query radius, metres (> 0).
+
     """
 
     def __init__(self, pts: np.ndarray, radius: float) -> None:
@@ -182,8 +184,14 @@ def _cell_bounds(origin, cell, dims, qx, qy, qz):
     if fx < -1 or fy < -1 or fz < -1 or fx > dims[0] or fy > dims[1] or fz > dims[2]:
         return 1, 0, 0, -1, 0, -1
     cx, cy, cz = int(fx), int(fy), int(fz)
-    return (max(cx - 1, 0), min(cx + 1, dims[0] - 1), max(cy - 1, 0), min(cy + 1, dims[1] - 1),
-            max(cz - 1, 0), min(cz + 1, dims[2] - 1))
+    return (
+        max(cx - 1, 0),
+        min(cx + 1, dims[0] - 1),
+        max(cy - 1, 0),
+        min(cy + 1, dims[1] - 1),
+        max(cz - 1, 0),
+        min(cz + 1, dims[2] - 1),
+    )
 
 
 @numba.njit(cache=True)
@@ -213,15 +221,39 @@ def _grid_csr(origin, cell, dims, order, starts, pts, queries, r2):
     counts = np.zeros(k_count, dtype=np.int64)
     empty = np.zeros(0, dtype=np.int64)
     for k in numba.prange(k_count):
-        counts[k] = _visit(origin, cell, dims, order, starts, pts, queries[k, 0], queries[k, 1], queries[k, 2],
-                           r2, empty, False)
+        counts[k] = _visit(
+            origin,
+            cell,
+            dims,
+            order,
+            starts,
+            pts,
+            queries[k, 0],
+            queries[k, 1],
+            queries[k, 2],
+            r2,
+            empty,
+            False,
+        )
     offsets = np.zeros(k_count + 1, dtype=np.int64)
     for k in range(k_count):
         offsets[k + 1] = offsets[k] + counts[k]
     nbrs = np.empty(offsets[k_count], dtype=np.int64)
     for k in numba.prange(k_count):
-        _visit(origin, cell, dims, order, starts, pts, queries[k, 0], queries[k, 1], queries[k, 2], r2,
-               nbrs[offsets[k]:offsets[k + 1]], True)
+        _visit(
+            origin,
+            cell,
+            dims,
+            order,
+            starts,
+            pts,
+            queries[k, 0],
+            queries[k, 1],
+            queries[k, 2],
+            r2,
+            nbrs[offsets[k] : offsets[k + 1]],
+            True,
+        )
     return offsets, nbrs
 
 
@@ -230,6 +262,7 @@ def radius_csr(pts: np.ndarray, queries: np.ndarray, radius: float, grid: Grid |
 
     Returns:
         (offsets (K+1,), indices (M,)) int64 CSR arrays; a non-finite query has no neighbour.
+
     """
     g = grid if grid is not None else Grid(pts, radius)
     return _grid_csr(*g.args(), pts, queries, pcl_squared_radius(radius))
@@ -332,8 +365,18 @@ def _spfh_rows(origin, cell, dims, order, starts, pts, nrm, centres, r2, nbins):
                     if q == p:
                         continue
                     ok, f1, f2, f3, _f4 = _pair_features_f32(
-                        px, py, pz, nrm[p, 0], nrm[p, 1], nrm[p, 2],
-                        pts[q, 0], pts[q, 1], pts[q, 2], nrm[q, 0], nrm[q, 1], nrm[q, 2],
+                        px,
+                        py,
+                        pz,
+                        nrm[p, 0],
+                        nrm[p, 1],
+                        nrm[p, 2],
+                        pts[q, 0],
+                        pts[q, 1],
+                        pts[q, 2],
+                        nrm[q, 0],
+                        nrm[q, 1],
+                        nrm[q, 2],
                     )
                     if not ok:
                         continue
@@ -400,8 +443,18 @@ def _pfh_histogram_kernel(pts, nrm, idx, nr_split):
             b = idx[j]
             # PCL adds every pair, a rejected pair with its zero features included.
             _ok, f1, f2, f3, _f4 = _pair_features_f32(
-                pts[a, 0], pts[a, 1], pts[a, 2], nrm[a, 0], nrm[a, 1], nrm[a, 2],
-                pts[b, 0], pts[b, 1], pts[b, 2], nrm[b, 0], nrm[b, 1], nrm[b, 2],
+                pts[a, 0],
+                pts[a, 1],
+                pts[a, 2],
+                nrm[a, 0],
+                nrm[a, 1],
+                nrm[a, 2],
+                pts[b, 0],
+                pts[b, 1],
+                pts[b, 2],
+                nrm[b, 0],
+                nrm[b, 1],
+                nrm[b, 2],
             )
             h = (
                 _bin_angle(f1, nr_split)
@@ -426,16 +479,21 @@ def pfh_pair_features(p1, n1, p2, n2) -> tuple[float, float, float, float]:
         (f1, f2, f3, f4): f1 = angle of the target normal in the Darboux (u, w) plane, radians in [-π, π];
         f2 = v·n_tgt and f3 = u·d̂ (cosines in [-1, 1]); f4 = |p2 - p1|, metres. All four are 0 when the
         points coincide or the line is parallel to the source normal (PCL then rejects the pair).
+
     """
     a = np.asarray(p1, dtype=np.float32).reshape(3)
     b = np.asarray(n1, dtype=np.float32).reshape(3)
     c = np.asarray(p2, dtype=np.float32).reshape(3)
     d = np.asarray(n2, dtype=np.float32).reshape(3)
-    _ok, f1, f2, f3, f4 = _pair_features_f32(a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2], d[0], d[1], d[2])
+    _ok, f1, f2, f3, f4 = _pair_features_f32(
+        a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2], d[0], d[1], d[2]
+    )
     return float(f1), float(f2), float(f3), float(f4)
 
 
-def pfh_histogram(points: np.ndarray, normals: np.ndarray, indices: np.ndarray, subdivisions: int = 5) -> np.ndarray:
+def pfh_histogram(
+    points: np.ndarray, normals: np.ndarray, indices: np.ndarray, subdivisions: int = 5
+) -> np.ndarray:
     """PFH signature of an ordered neighbourhood, as PCL's ``computePointPFHSignature``.
 
     Args:
@@ -446,6 +504,7 @@ def pfh_histogram(points: np.ndarray, normals: np.ndarray, indices: np.ndarray, 
 
     Returns:
         (subdivisions³,) float32 histogram summing to 100.
+
     """
     pts = np.ascontiguousarray(as_points(points), dtype=np.float32)
     nrm = np.ascontiguousarray(as_points(normals, "normals"), dtype=np.float32)
@@ -465,6 +524,7 @@ def spfh(points: np.ndarray, normals: np.ndarray, centres: np.ndarray, radius: f
 
     Returns:
         (M, 33) float32: f1, f2, f3 histograms, each summing to 100 (0 when the point has no neighbour).
+
     """
     r = check_radius(radius)
     pts = np.ascontiguousarray(as_points(points), dtype=np.float32)
@@ -474,7 +534,9 @@ def spfh(points: np.ndarray, normals: np.ndarray, centres: np.ndarray, radius: f
     return _spfh_rows(*grid.args(), pts, nrm, centres, pcl_squared_radius(r), FPFH_BINS_PER_FEATURE)
 
 
-def fpfh(points: np.ndarray, normals: np.ndarray, keypoints: np.ndarray, radius: float) -> np.ndarray:
+def fpfh(
+    points: np.ndarray, normals: np.ndarray, keypoints: np.ndarray, radius: float
+) -> np.ndarray:
     """Fast Point Feature Histograms (33 values), PCL's FPFHEstimation conventions.
 
     Args:
@@ -491,6 +553,7 @@ def fpfh(points: np.ndarray, normals: np.ndarray, keypoints: np.ndarray, radius:
     Raises:
         InputError: bad array shapes or keypoint indices.
         InputError: radius not finite and > 0.
+
     """
     r = check_radius(radius)
     pts64 = as_points(points)
@@ -522,4 +585,6 @@ def fpfh(points: np.ndarray, normals: np.ndarray, keypoints: np.ndarray, radius:
     row_of = np.full(pts.shape[0], -1, dtype=np.int64)
     row_of[needed] = np.arange(needed.shape[0])
     rows = _spfh_rows(*grid.args(), pts, nrm, needed, r2, FPFH_BINS_PER_FEATURE)
-    return _weight_spfh(kp, pts, kp_off, kp_nbrs, row_of, rows, r2, FPFH_BINS_PER_FEATURE, FPFH_MIN_NEIGHBOURS)
+    return _weight_spfh(
+        kp, pts, kp_off, kp_nbrs, row_of, rows, r2, FPFH_BINS_PER_FEATURE, FPFH_MIN_NEIGHBOURS
+    )

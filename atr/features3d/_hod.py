@@ -25,7 +25,13 @@ import math
 import numba
 import numpy as np
 
-from atr.features3d._fpfh import as_points, check_radius, keypoint_coordinates, pcl_squared_radius, radius_csr
+from atr.features3d._fpfh import (
+    as_points,
+    check_radius,
+    keypoint_coordinates,
+    pcl_squared_radius,
+    radius_csr,
+)
 
 # Table III of the paper: HoD 240 = coarse 40 + fine 200; HoD-S = the coarse 40 alone.
 HOD_COARSE_BINS = 40
@@ -42,7 +48,7 @@ def _hod_kernel(pts, pts64, kp, offsets, nbrs, r2, radius, coarse, fine, min_poi
     out = np.full((k_count, length), np.nan, dtype=np.float32)
     inv_diam = 1.0 / (2.0 * radius)
     for k in numba.prange(k_count):
-        cand = nbrs[offsets[k]:offsets[k + 1]]
+        cand = nbrs[offsets[k] : offsets[k + 1]]
         keep = np.zeros(cand.shape[0], dtype=np.bool_)
         for t in range(cand.shape[0]):
             q = cand[t]
@@ -81,7 +87,9 @@ def _hod_kernel(pts, pts64, kp, offsets, nbrs, r2, radius, coarse, fine, min_poi
     return out
 
 
-def hod(points: np.ndarray, keypoints: np.ndarray, radius: float, *, short: bool = False) -> np.ndarray:
+def hod(
+    points: np.ndarray, keypoints: np.ndarray, radius: float, *, short: bool = False
+) -> np.ndarray:
     """Histogram of Distances (HoD, 240 values) or its short form (HoD-S, 40 values).
 
     Args:
@@ -98,6 +106,7 @@ def hod(points: np.ndarray, keypoints: np.ndarray, radius: float, *, short: bool
     Raises:
         InputError: bad shapes or keypoint indices.
         InputError: radius not finite and > 0.
+
     """
     r = check_radius(radius)
     pts64 = as_points(points)
@@ -109,5 +118,14 @@ def hod(points: np.ndarray, keypoints: np.ndarray, radius: float, *, short: bool
     kp = np.ascontiguousarray(kp64, dtype=np.float32)
     offsets, nbrs = radius_csr(pts, kp, r)
     return _hod_kernel(
-        pts, pts64, kp, offsets, nbrs, pcl_squared_radius(r), r, HOD_COARSE_BINS, fine, HOD_MIN_POINTS
+        pts,
+        pts64,
+        kp,
+        offsets,
+        nbrs,
+        pcl_squared_radius(r),
+        r,
+        HOD_COARSE_BINS,
+        fine,
+        HOD_MIN_POINTS,
     )

@@ -115,9 +115,11 @@ def shot_frames(
 
     Returns:
         (K, 3, 3) float64; rows x, y, z; NaN where undefined.
+
     """
-    cov = _weighted_covariances(points, centres, nb.offsets, nb.indices, nb.sq_dists, float(radius),
-                                int(min_valid))
+    cov = _weighted_covariances(
+        points, centres, nb.offsets, nb.indices, nb.sq_dists, float(radius), int(min_valid)
+    )
     axes_x = np.full(centres.shape, np.nan)
     axes_z = np.full(centres.shape, np.nan)
     ok = np.isfinite(cov).all(axis=(1, 2))

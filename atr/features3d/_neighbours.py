@@ -29,6 +29,7 @@ class Neighbourhoods:
         offsets: (K+1,) int64; the neighbours of query i are entries offsets[i]:offsets[i+1].
         indices: (M,) int64 indices into the surface points.
         sq_dists: (M,) float64 squared distances, metres².
+
     """
 
     offsets: np.ndarray
@@ -125,8 +126,18 @@ def _search(surface, order, unique_keys, starts, origin, dims, cell, queries, r2
     dummy_d = np.empty(0, dtype=np.float64)
     for i in numba.prange(k):
         counts[i] = _visit(
-            surface, order, unique_keys, starts, origin, dims, cell, queries[i], r2,
-            dummy_i, dummy_d, False,
+            surface,
+            order,
+            unique_keys,
+            starts,
+            origin,
+            dims,
+            cell,
+            queries[i],
+            r2,
+            dummy_i,
+            dummy_d,
+            False,
         )
     offsets = np.zeros(k + 1, dtype=np.int64)
     for i in range(k):
@@ -137,8 +148,18 @@ def _search(surface, order, unique_keys, starts, origin, dims, cell, queries, r2
         a = offsets[i]
         b = offsets[i + 1]
         _visit(
-            surface, order, unique_keys, starts, origin, dims, cell, queries[i], r2,
-            indices[a:b], sq_dists[a:b], True,
+            surface,
+            order,
+            unique_keys,
+            starts,
+            origin,
+            dims,
+            cell,
+            queries[i],
+            r2,
+            indices[a:b],
+            sq_dists[a:b],
+            True,
         )
         if sort and b - a > 1:
             _sort_by_distance(indices[a:b], sq_dists[a:b])
@@ -153,8 +174,18 @@ def _count(surface, order, unique_keys, starts, origin, dims, cell, queries, r2)
     dummy_d = np.empty(0, dtype=np.float64)
     for i in numba.prange(k):
         counts[i] = _visit(
-            surface, order, unique_keys, starts, origin, dims, cell, queries[i], r2,
-            dummy_i, dummy_d, False,
+            surface,
+            order,
+            unique_keys,
+            starts,
+            origin,
+            dims,
+            cell,
+            queries[i],
+            r2,
+            dummy_i,
+            dummy_d,
+            False,
         )
     return counts
 
@@ -165,6 +196,7 @@ class RadiusSearch:
     Args:
         surface: (N, 3) float, metres. Non-finite points are never returned as neighbours.
         radius: search radius, metres (> 0); the grid cell edge.
+
     """
 
     def __init__(self, surface: np.ndarray, radius: float) -> None:
@@ -204,7 +236,9 @@ class RadiusSearch:
         self._keys = unique_keys.astype(np.int64)
         self._starts = np.append(first, sorted_keys.shape[0]).astype(np.int64)
 
-    def query(self, queries: np.ndarray, radius: float | None = None, sort: bool = True) -> Neighbourhoods:
+    def query(
+        self, queries: np.ndarray, radius: float | None = None, sort: bool = True
+    ) -> Neighbourhoods:
         """Neighbours within ``radius`` (≤ the grid radius) of each query point.
 
         Args:
@@ -214,11 +248,20 @@ class RadiusSearch:
 
         Returns:
             Neighbourhoods in CSR form.
+
         """
         r, q = self._prepare(queries, radius)
         offsets, indices, d2 = _search(
-            self.surface, self._order, self._keys, self._starts, self._origin, self._dims,
-            self.radius, q, r * r, sort,
+            self.surface,
+            self._order,
+            self._keys,
+            self._starts,
+            self._origin,
+            self._dims,
+            self.radius,
+            q,
+            r * r,
+            sort,
         )
         return Neighbourhoods(offsets, indices, d2)
 
@@ -226,8 +269,15 @@ class RadiusSearch:
         """Number of neighbours within ``radius`` (≤ the grid radius) of each query, (K,) int64."""
         r, q = self._prepare(queries, radius)
         return _count(
-            self.surface, self._order, self._keys, self._starts, self._origin, self._dims,
-            self.radius, q, r * r,
+            self.surface,
+            self._order,
+            self._keys,
+            self._starts,
+            self._origin,
+            self._dims,
+            self.radius,
+            q,
+            r * r,
         )
 
     def _prepare(self, queries: np.ndarray, radius: float | None) -> tuple[float, np.ndarray]:
@@ -256,6 +306,7 @@ def radius_neighbours(
 
     Returns:
         Neighbourhoods in CSR form.
+
     """
     return RadiusSearch(surface, radius).query(queries, sort=sort)
 
@@ -270,5 +321,6 @@ def count_within(surface: np.ndarray, which: np.ndarray, radius: float) -> np.nd
 
     Returns:
         (M,) int64 counts.
+
     """
     return RadiusSearch(surface, radius).count(np.asarray(surface, dtype=np.float64)[which])

@@ -42,7 +42,9 @@ def _covariances(points, offsets, indices, min_neighbours):
     return cov
 
 
-def _plane_fit(points: np.ndarray, nb: Neighbourhoods, min_neighbours: int) -> tuple[np.ndarray, np.ndarray]:
+def _plane_fit(
+    points: np.ndarray, nb: Neighbourhoods, min_neighbours: int
+) -> tuple[np.ndarray, np.ndarray]:
     cov = _covariances(points, nb.offsets, nb.indices, min_neighbours)
     normals = np.full((cov.shape[0], 3), np.nan)
     curvature = np.full(cov.shape[0], np.nan)
@@ -68,6 +70,7 @@ def estimate_normals_and_curvature(
     Returns:
         normals (N, 3) float64 unit vectors (NaN rows where < config.min_neighbours neighbours), and
         curvature (N,) float64 = λmin / Σλ (NaN likewise).
+
     """
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:

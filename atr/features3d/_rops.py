@@ -287,8 +287,22 @@ def _projection_stats(cloud, mn, mx, u, v, nbins, out, pos):
 
 
 @numba.njit(cache=True, parallel=True)
-def _rops_kernel(pts, kp, offsets, nbrs, r2, radius, use_mesh, tris, inc_off, inc_tri, angles, nbins, out_len,
-                 min_points):
+def _rops_kernel(
+    pts,
+    kp,
+    offsets,
+    nbrs,
+    r2,
+    radius,
+    use_mesh,
+    tris,
+    inc_off,
+    inc_tri,
+    angles,
+    nbins,
+    out_len,
+    min_points,
+):
     k_count = kp.shape[0]
     n_ang = angles.shape[0]
     full_len = _AXES * n_ang * _PROJECTIONS * _STATS_PER_PROJECTION
@@ -296,7 +310,7 @@ def _rops_kernel(pts, kp, offsets, nbrs, r2, radius, use_mesh, tris, inc_off, in
     for k in numba.prange(k_count):
         fp = kp[k]
         # Local points under FLANN's float32 strict test.
-        cand = nbrs[offsets[k]:offsets[k + 1]]
+        cand = nbrs[offsets[k] : offsets[k + 1]]
         keep = np.zeros(cand.shape[0], dtype=np.bool_)
         for t in range(cand.shape[0]):
             q = cand[t]
@@ -359,7 +373,9 @@ def _rops_kernel(pts, kp, offsets, nbrs, r2, radius, use_mesh, tris, inc_off, in
                     mx[a] = -_FLT_MAX
                 for t in range(n_loc):
                     for a in range(3):
-                        val = _dot3(rot[a, 0], rot[a, 1], rot[a, 2], cloud[t, 0], cloud[t, 1], cloud[t, 2])
+                        val = _dot3(
+                            rot[a, 0], rot[a, 1], rot[a, 2], cloud[t, 0], cloud[t, 1], cloud[t, 2]
+                        )
                         rotated[t, a] = val
                         mn[a] = min(mn[a], val)
                         mx[a] = max(mx[a], val)
@@ -418,6 +434,7 @@ def rops(
         InputError: bad shapes, keypoint or triangle indices out of range.
         InputError: radius not finite and > 0.
         ConfigError: partition_bins or rotations < 1 (PCL silently keeps its previous value).
+
     """
     r = check_radius(radius)
     if int(partition_bins) < 1:
@@ -441,7 +458,9 @@ def rops(
         if tris.size == 0:
             return np.full((k_count, out_len), np.nan, dtype=np.float32)
         if tris.ndim != 2 or tris.shape[1] != 3 or not np.issubdtype(tris.dtype, np.integer):
-            raise InputError(f"triangles shape {tris.shape} dtype {tris.dtype} must be (M, 3) integer")
+            raise InputError(
+                f"triangles shape {tris.shape} dtype {tris.dtype} must be (M, 3) integer"
+            )
         tris = np.ascontiguousarray(tris, dtype=np.int64)
         if tris.min() < 0 or tris.max() >= pts.shape[0]:
             raise InputError(
@@ -457,6 +476,18 @@ def rops(
 
     offsets, nbrs = radius_csr(pts, kp, r)
     return _rops_kernel(
-        pts, kp, offsets, nbrs, pcl_squared_radius(r), np.float32(r), use_mesh, tris, inc_off, inc_tri,
-        rops_angles(n_rot), nbins, out_len, ROPS_MIN_POINTS,
+        pts,
+        kp,
+        offsets,
+        nbrs,
+        pcl_squared_radius(r),
+        np.float32(r),
+        use_mesh,
+        tris,
+        inc_off,
+        inc_tri,
+        rops_angles(n_rot),
+        nbins,
+        out_len,
+        ROPS_MIN_POINTS,
     )

@@ -36,7 +36,9 @@ def _volume_index(x: float, y: float, z: float, distance: float, half_radius: fl
     """Volume = 4·sector + 2·shell + hemisphere; sector k covers azimuth [-π + kπ/4, -π + (k+1)π/4)."""
     upper_y = (y > 0) or (y == 0.0 and x < 0)
     right_x = (x > 0) or (x == 0.0 and y > 0)
-    quadrant = 2 * int(upper_y) + int(right_x != upper_y)  # 0: x<0,y<0 · 1: x>0,y<0 · 2: x>0,y>0 · 3: x<0,y>0
+    quadrant = 2 * int(upper_y) + int(
+        right_x != upper_y
+    )  # 0: x<0,y<0 · 1: x>0,y<0 · 2: x>0,y>0 · 3: x<0,y>0
     index = 8 * quadrant
     if (x * y > 0) or (x == 0.0):
         if abs(x) < abs(y):
@@ -143,7 +145,9 @@ def _shot_one(points, normals, centre, frame, idx, d2, radius, nr_bins, out):
 
 
 @numba.njit(cache=True, parallel=True)
-def _shot_all(points, normals, centres, frames, offsets, indices, sq_dists, radius, nr_bins, min_nb):
+def _shot_all(
+    points, normals, centres, frames, offsets, indices, sq_dists, radius, nr_bins, min_nb
+):
     k = centres.shape[0]
     length = _N_VOLUMES * (nr_bins + 1)
     out = np.full((k, length), np.nan, dtype=np.float32)
@@ -152,10 +156,22 @@ def _shot_all(points, normals, centres, frames, offsets, indices, sq_dists, radi
         b = offsets[i + 1]
         if b - a < min_nb or not np.isfinite(frames[i]).all():
             continue
-        if not (np.isfinite(centres[i, 0]) and np.isfinite(centres[i, 1]) and np.isfinite(centres[i, 2])):
+        if not (
+            np.isfinite(centres[i, 0]) and np.isfinite(centres[i, 1]) and np.isfinite(centres[i, 2])
+        ):
             continue
         desc = np.zeros(length)
-        _shot_one(points, normals, centres[i], frames[i], indices[a:b], sq_dists[a:b], radius, nr_bins, desc)
+        _shot_one(
+            points,
+            normals,
+            centres[i],
+            frames[i],
+            indices[a:b],
+            sq_dists[a:b],
+            radius,
+            nr_bins,
+            desc,
+        )
         out[i] = desc.astype(np.float32)
     return out
 
@@ -190,6 +206,7 @@ def shot(
         lrf_radius: LRF radius, metres (default R).
         lrf: optional precomputed (K, 3, 3) frames (rows x, y, z), e.g. from ``shot_lrf``.
         config: SHOT settings.
+
     """
     points, keypoints = _check(points, keypoints, radius)
     if normals is None:
@@ -211,18 +228,30 @@ def shot(
         if frames.shape != (keypoints.shape[0], 3, 3):
             raise InputError(f"lrf shape {frames.shape} must be ({keypoints.shape[0]}, 3, 3)")
     return _shot_all(
-        points, normals, centres, np.ascontiguousarray(frames), nb.offsets, nb.indices, nb.sq_dists,
-        float(radius), int(config.shape_bins), int(config.min_neighbours),
+        points,
+        normals,
+        centres,
+        np.ascontiguousarray(frames),
+        nb.offsets,
+        nb.indices,
+        nb.sq_dists,
+        float(radius),
+        int(config.shape_bins),
+        int(config.min_neighbours),
     )
 
 
-def _check(points: np.ndarray, keypoints: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+def _check(
+    points: np.ndarray, keypoints: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray]:
     points = np.ascontiguousarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise InputError(f"points shape {points.shape} must be (N, 3)")
     keypoints = np.asarray(keypoints)
     if keypoints.ndim != 1 or not np.issubdtype(keypoints.dtype, np.integer):
-        raise InputError(f"keypoints must be a 1-D integer index array, got {keypoints.dtype} {keypoints.shape}")
+        raise InputError(
+            f"keypoints must be a 1-D integer index array, got {keypoints.dtype} {keypoints.shape}"
+        )
     if keypoints.size and (keypoints.min() < 0 or keypoints.max() >= points.shape[0]):
         raise InputError(
             f"keypoint indices span [{keypoints.min()}, {keypoints.max()}], expected [0, {points.shape[0] - 1}]"

@@ -41,6 +41,7 @@ def usc(
         point_density_radius: metres (default config.k_point_density_radius · R).
         azimuth_bins, elevation_bins, radial_bins: override the config's bins (12, 11, 15 gives 1980).
         config: defaults of the above.
+
     """
     points, keypoints = _check(points, keypoints, radius)
     cfg = _with_bins(config, azimuth_bins, elevation_bins, radial_bins)
@@ -48,7 +49,11 @@ def usc(
     if not lrf_r > 0:
         raise InputError(f"lrf_radius {lrf_r} m must be > 0")
     r_min = cfg.k_minimal_radius * radius if minimal_radius is None else float(minimal_radius)
-    r_dens = cfg.k_point_density_radius * radius if point_density_radius is None else float(point_density_radius)
+    r_dens = (
+        cfg.k_point_density_radius * radius
+        if point_density_radius is None
+        else float(point_density_radius)
+    )
     centres = points[keypoints]
     search = RadiusSearch(points, max(radius, lrf_r))
     nb = search.query(centres, radius=radius, sort=True)

@@ -35,6 +35,7 @@ class DescriptionRadius:
     Attributes:
         rho_mr: multiplier ρ of the mesh/cloud resolution (dimensionless, "mr" units).
         source: where ρ comes from.
+
     """
 
     rho_mr: float
@@ -91,6 +92,7 @@ def description_radius(name: str, resolution_m: float) -> float:
 
     Raises:
         ConfigError: unknown name or resolution not > 0.
+
     """
     if name not in DESCRIPTION_RADII:
         raise ConfigError(f"descriptor {name!r} is not one of {DESCRIPTOR_NAMES}")
@@ -107,6 +109,7 @@ class NormalConfig:
         k_neighbours: neighbours of the plane fit, the point itself included (paper §II-B-2: "fitting a plane on
             the six closest neighbours").
         min_neighbours: fewer neighbours give a NaN normal (PCL: a plane needs 3 points).
+
     """
 
     k_neighbours: int = 6
@@ -127,6 +130,7 @@ class ShotConfig:
         shape_bins: cosine bins per spatial volume (PCL default 10; each volume stores shape_bins + 1 slots).
         min_neighbours: fewer neighbours in the radius (the point itself included) give a NaN row (PCL: 5).
         lrf_min_neighbours: fewer valid LRF neighbours (the point itself excluded) give a NaN frame (PCL: 5).
+
     """
 
     shape_bins: int = 10
@@ -156,6 +160,7 @@ class ShapeContextConfig:
         min_neighbours: fewer neighbours (the point itself included) give a NaN row. 5 as SHOT (PCL's 3DSC only
             needs 1, which is never limiting on real clouds; USC's LRF already needs 5 other points).
         seed: 3DSC's random x axis: PCL's mt19937 seed (12345 reproduces released PCL).
+
     """
 
     azimuth_bins: int

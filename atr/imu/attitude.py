@@ -23,6 +23,7 @@ def attitude_matrix(pitch_rad: float, roll_rad: float, yaw_rad: float) -> np.nda
 
     Returns:
         (3, 3) float64 rotation matrix R(u, v, w) = Rz(u) Ry(v) Rx(w).
+
     """
     su, cu = np.sin(pitch_rad), np.cos(pitch_rad)
     sv, cv = np.sin(roll_rad), np.cos(roll_rad)
@@ -45,6 +46,7 @@ def attitude_angles(R: np.ndarray) -> tuple[float, float, float]:
 
     Returns:
         (u, v, w) with v in [-pi/2, pi/2]; at v = ±pi/2 (gimbal lock) w is set to 0.
+
     """
     R = np.asarray(R, dtype=np.float64)
     if R.shape != (3, 3) or not np.all(np.isfinite(R)):
@@ -67,6 +69,7 @@ def invert_pose(T: np.ndarray) -> np.ndarray:
 
     Returns:
         (4, 4) float64 T_b_a.
+
     """
     T = _check_pose(T, "pose")
     out = np.eye(4)
@@ -88,6 +91,7 @@ def relative_camera_pose(T_world_cam_t: np.ndarray, T_world_cam_t1: np.ndarray) 
     Returns:
         (4, 4) float64 T_cam_t1_cam_t: maps a point from the camera frame at t to the camera frame
         at t+1.
+
     """
     T_t = _check_pose(T_world_cam_t, "T_world_cam_t")
     return invert_pose(T_world_cam_t1) @ T_t

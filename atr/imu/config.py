@@ -40,6 +40,7 @@ class ImuConfig:
         max_extrapolation_samples: how far past the last IMU sample a frame may be, in nominal
             sample periods (the last sample is held). Default 1: a camera and IMU on one clock
             differ by less than one IMU period; more would be a guess.
+
     """
 
     integration: Literal["strapdown", "paper"] = "strapdown"
@@ -51,9 +52,7 @@ class ImuConfig:
 
     def __post_init__(self) -> None:
         if self.integration not in ("strapdown", "paper"):
-            raise ConfigError(
-                f"integration {self.integration!r} must be 'strapdown' or 'paper'"
-            )
+            raise ConfigError(f"integration {self.integration!r} must be 'strapdown' or 'paper'")
         if not np.isfinite(self.gravity_mps2) or self.gravity_mps2 < 0.0:
             raise ConfigError(f"gravity_mps2 {self.gravity_mps2} must be finite and >= 0")
         if not np.isfinite(self.imu_rate_hz) or self.imu_rate_hz <= 0.0:

@@ -28,6 +28,7 @@ class WindowErrors:
         rotation_error_rad: (K,) angle of R_gt_end^T R_est_end (the start is exact), radians.
         translation_error_m: (K,) |p_est_end - p_gt_end| (the start is exact), metres.
         gt_distance_m: (K,) distance travelled according to the ground truth, metres.
+
     """
 
     window_s: float
@@ -65,6 +66,7 @@ def window_errors(
 
     Returns:
         WindowErrors for the windows that lie inside both streams.
+
     """
     if window_s <= 0.0:
         raise InputError(f"window_s {window_s} must be > 0")
@@ -112,6 +114,7 @@ class GroundTruthErrors:
             second differences / sqrt(6), metres.
         rotation_noise_rad: per-sample rotation noise at rest, the same on rotation vectors,
             radians.
+
     """
 
     world_tilt_rad: float
@@ -138,6 +141,7 @@ def ground_truth_errors(
     Args:
         static_until_ns: the vehicle is at rest from the first ground-truth instant to this stamp;
             every term is measured over that segment.
+
     """
     i = 0  # the static segment starts at the first ground-truth row
     m = (imu_t_ns >= gt_t_ns[0]) & (imu_t_ns <= static_until_ns)

@@ -41,6 +41,7 @@ class NavState:
         gyro_bias_radps: (3,) float64, gyro bias (subtracted from the raw rate), rad/s.
         accel_bias_mps2: (3,) float64, accelerometer bias (subtracted from the raw specific force),
             m/s^2.
+
     """
 
     stamp_ns: int
@@ -112,6 +113,7 @@ def integrate(
     Raises:
         InputError: empty batch, wrong shapes, NaN samples, non-increasing times, a sample before
             the state, or a gap longer than config.max_gap_samples periods.
+
     """
     t, gyro, accel = check_imu_samples(t_ns, gyro_radps, accel_mps2, config=config)
     if t[0] < state.stamp_ns:
@@ -133,6 +135,7 @@ def check_imu_samples(
 
     Raises:
         InputError: naming the first offending sample (empty, shape, NaN, order, gap).
+
     """
     t = np.asarray(t_ns)
     if t.ndim != 1 or t.shape[0] == 0:
@@ -224,6 +227,7 @@ class PoseIntegrator:
         pi = PoseIntegrator(ImuConfig(), NavState.at_rest(t0_ns))
         pi.add_imu(t_ns, gyro_radps, accel_mps2)
         T_world_cam = pi.camera_pose(frame_stamp_ns)
+
     """
 
     def __init__(self, config: ImuConfig, initial: NavState) -> None:
@@ -257,6 +261,7 @@ class PoseIntegrator:
         Raises:
             InputError: bad batch (see check_imu_samples), a batch not after the previous one, or a
                 gap.
+
         """
         t, gyro, accel = check_imu_samples(t_ns, gyro_radps, accel_mps2, config=self._config)
         if self._t.shape[0]:
@@ -286,6 +291,7 @@ class PoseIntegrator:
         Raises:
             InputError: a stamp before the previous frame, before the first IMU sample, or more than
                 config.max_extrapolation_samples periods after the last IMU sample.
+
         """
         stamp = int(stamp_ns)
         state = self._state

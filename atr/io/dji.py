@@ -56,6 +56,7 @@ class DjiPhotoMeta:
             (yaw from north clockwise, pitch -90 = nadir).
         flight_yaw_deg, flight_pitch_deg, flight_roll_deg: XMP airframe attitude, degrees.
         model: camera model (XMP tiff:Model), e.g. "FC300S".
+
     """
 
     latitude_deg: float
@@ -85,6 +86,7 @@ def read_dji_metadata(path: str | Path) -> DjiPhotoMeta:
 
     Raises:
         InputError: unreadable file, not a JPEG, or a required EXIF/XMP field missing.
+
     """
     path = Path(path)
     try:
@@ -132,6 +134,7 @@ def enu_from_geodetic(
 
     Returns:
         (3,) float64, metres (east, north, up).
+
     """
     ecef = _ecef(latitude_deg, longitude_deg, altitude_m)
     origin = _ecef(origin_latitude_deg, origin_longitude_deg, origin_altitude_m)
@@ -156,11 +159,16 @@ def R_world_cam_from_gimbal(yaw_deg: float, pitch_deg: float, roll_deg: float) -
 
     Returns:
         (3, 3) float64 rotation taking OpenCV camera axes to ENU world axes.
+
     """
     y, p, r = (math.radians(a) for a in (yaw_deg, pitch_deg, roll_deg))
     Rz = np.array([[math.cos(y), -math.sin(y), 0.0], [math.sin(y), math.cos(y), 0.0], [0, 0, 1.0]])
-    Ry = np.array([[math.cos(p), 0.0, math.sin(p)], [0.0, 1.0, 0.0], [-math.sin(p), 0, math.cos(p)]])
-    Rx = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]])
+    Ry = np.array(
+        [[math.cos(p), 0.0, math.sin(p)], [0.0, 1.0, 0.0], [-math.sin(p), 0, math.cos(p)]]
+    )
+    Rx = np.array(
+        [[1.0, 0.0, 0.0], [0.0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]]
+    )
     return _R_ENU_NED @ Rz @ Ry @ Rx @ _R_GIMBAL_CV
 
 
@@ -176,12 +184,15 @@ def T_world_cam_from_meta(meta: DjiPhotoMeta, origin: DjiPhotoMeta) -> np.ndarra
 
     Returns:
         (4, 4) float64 T_world_cam; the origin of the world frame is on the take-off ground level.
+
     """
     enu = enu_from_geodetic(
         meta.latitude_deg, meta.longitude_deg, 0.0, origin.latitude_deg, origin.longitude_deg, 0.0
     )
     T = np.eye(4)
-    T[:3, :3] = R_world_cam_from_gimbal(meta.gimbal_yaw_deg, meta.gimbal_pitch_deg, meta.gimbal_roll_deg)
+    T[:3, :3] = R_world_cam_from_gimbal(
+        meta.gimbal_yaw_deg, meta.gimbal_pitch_deg, meta.gimbal_roll_deg
+    )
     T[:3, 3] = [enu[0], enu[1], meta.relative_altitude_m]
     return T
 
@@ -202,6 +213,7 @@ def intrinsics_from_focal(
 
     Raises:
         InputError: non-positive values.
+
     """
     if not (focal_length_mm > 0 and sensor_width_mm > 0 and width_px > 0 and height_px > 0):
         raise InputError(
@@ -209,7 +221,9 @@ def intrinsics_from_focal(
             f"{width_px}x{height_px} px must all be > 0"
         )
     f_px = focal_length_mm / sensor_width_mm * width_px
-    return np.array([[f_px, 0.0, (width_px - 1) / 2], [0.0, f_px, (height_px - 1) / 2], [0, 0, 1.0]])
+    return np.array(
+        [[f_px, 0.0, (width_px - 1) / 2], [0.0, f_px, (height_px - 1) / 2], [0, 0, 1.0]]
+    )
 
 
 # Internals
@@ -260,9 +274,11 @@ def _parse_exif(tiff: bytes, path: Path) -> dict[str, float]:
             entry = tiff[offset + 2 + 12 * i : offset + 14 + 12 * i]
             tag, kind, n = struct.unpack(endian + "HHI", entry[:8])
             size = _TIFF_TYPE_SIZE.get(kind, 1) * n
-            raw = entry[8:12] if size <= 4 else tiff[
-                struct.unpack(endian + "I", entry[8:12])[0] :
-            ][:size]
+            raw = (
+                entry[8:12]
+                if size <= 4
+                else tiff[struct.unpack(endian + "I", entry[8:12])[0] :][:size]
+            )
             entries[tag] = _decode_value(kind, n, raw, endian)
         return entries
 

@@ -38,6 +38,7 @@ class EurocImuNoise:
         accel_random_walk: m/s^3/sqrt(Hz) (accel bias diffusion).
         rate_hz: sample rate, Hz.
         T_body_imu: (4, 4) IMU pose in the body frame (T_BS).
+
     """
 
     gyro_noise_density: float
@@ -59,6 +60,7 @@ class EurocGroundTruth:
         v_world_mps: (M, 3) m/s.
         gyro_bias_radps: (M, 3) rad/s.
         accel_bias_mps2: (M, 3) m/s^2.
+
     """
 
     t_ns: np.ndarray
@@ -114,9 +116,7 @@ def read_sensor_yaml(path: Path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"EuRoC sensor file {path} does not exist")
-    text = "\n".join(
-        line for line in path.read_text().splitlines() if not line.startswith("%YAML")
-    )
+    text = "\n".join(line for line in path.read_text().splitlines() if not line.startswith("%YAML"))
     y = yaml.safe_load(text)
     if not isinstance(y, dict):
         raise InputError(f"{path} is not a YAML mapping")

@@ -31,6 +31,7 @@ def load_mesh(path: str | Path, material: int = M.DEFAULT) -> Mesh:
 
     Raises:
         InputError: missing file, unsupported extension, or no usable triangles.
+
     """
     p = Path(path)
     if not p.is_file():
@@ -59,6 +60,7 @@ def save_mesh(mesh: Mesh, path: str | Path) -> None:
 
     Raises:
         InputError: unsupported extension, empty mesh, or the writer failed.
+
     """
     p = Path(path)
     if p.suffix.lower() not in _EXTENSIONS:
@@ -66,8 +68,10 @@ def save_mesh(mesh: Mesh, path: str | Path) -> None:
     if mesh.n_triangles == 0:
         raise InputError(f"refusing to write an empty mesh to {p}")
     p.parent.mkdir(parents=True, exist_ok=True)
-    tm = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(mesh.vertices),
-                                   o3d.utility.Vector3iVector(mesh.triangles.astype(np.int32)))
+    tm = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(mesh.vertices),
+        o3d.utility.Vector3iVector(mesh.triangles.astype(np.int32)),
+    )
     tm.compute_triangle_normals()
     if p.suffix.lower() == ".stl":
         tm.compute_vertex_normals()

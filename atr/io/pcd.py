@@ -15,9 +15,16 @@ import numpy as np
 from atr.errors import InputError
 
 _TYPES = {
-    ("F", 4): np.float32, ("F", 8): np.float64,
-    ("I", 1): np.int8, ("I", 2): np.int16, ("I", 4): np.int32, ("I", 8): np.int64,
-    ("U", 1): np.uint8, ("U", 2): np.uint16, ("U", 4): np.uint32, ("U", 8): np.uint64,
+    ("F", 4): np.float32,
+    ("F", 8): np.float64,
+    ("I", 1): np.int8,
+    ("I", 2): np.int16,
+    ("I", 4): np.int32,
+    ("I", 8): np.int64,
+    ("U", 1): np.uint8,
+    ("U", 2): np.uint16,
+    ("U", 4): np.uint32,
+    ("U", 8): np.uint64,
 }
 
 
@@ -71,6 +78,7 @@ def lzf_decompress(data: bytes, uncompressed_size: int) -> bytes:
 
     Raises:
         InputError: the stream is corrupt or does not decode to ``uncompressed_size`` bytes.
+
     """
     src = np.frombuffer(data, dtype=np.uint8)
     dst = np.empty(uncompressed_size, dtype=np.uint8)
@@ -112,6 +120,7 @@ def read_pcd(path: str | Path) -> dict[str, np.ndarray]:
 
     Raises:
         InputError: the file is missing, truncated, or not a PCD file this reader understands.
+
     """
     path = Path(path)
     try:
@@ -124,8 +133,10 @@ def read_pcd(path: str | Path) -> dict[str, np.ndarray]:
         sizes = [int(v) for v in header["SIZE"]]
         types = [v.upper() for v in header["TYPE"]]
         counts = [int(v) for v in header.get("COUNT", ["1"] * len(names))]
-        n_points = int(header["POINTS"][0]) if "POINTS" in header else (
-            int(header["WIDTH"][0]) * int(header["HEIGHT"][0])
+        n_points = (
+            int(header["POINTS"][0])
+            if "POINTS" in header
+            else (int(header["WIDTH"][0]) * int(header["HEIGHT"][0]))
         )
         kind = header["DATA"][0].lower()
     except (KeyError, IndexError, ValueError) as exc:
@@ -156,7 +167,9 @@ def read_pcd(path: str | Path) -> dict[str, np.ndarray]:
             columns.append(arr)
             col += c
     elif kind == "binary":
-        record = np.dtype([(f"f{i}", dt, (c,)) for i, (dt, c) in enumerate(zip(dtypes, counts, strict=True))])
+        record = np.dtype(
+            [(f"f{i}", dt, (c,)) for i, (dt, c) in enumerate(zip(dtypes, counts, strict=True))]
+        )
         if len(body) < n_points * record.itemsize:
             raise InputError(
                 f"{path}: binary data has {len(body)} bytes, expected {n_points * record.itemsize}"

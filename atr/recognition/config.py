@@ -99,6 +99,7 @@ class RecognitionConfig:
         template_distance_m: distance of the HPR viewpoints from the model centre (scenario 1 range, Table II).
         hpr_radius_factor: Open3D HPR spherical-flip radius as a multiple of the viewpoint distance
             (Katz et al. 2007; Open3D's example uses 100 x the diameter).
+
     """
 
     resolution_m: float = 0.3
@@ -158,7 +159,9 @@ class RecognitionConfig:
         if self.normal_k < 3:
             raise ConfigError(f"normal_k = {self.normal_k} must be >= 3 (a plane needs 3 points)")
         if self.knndr_k < 2:
-            raise ConfigError(f"knndr_k = {self.knndr_k} must be >= 2 (a ratio needs two distances)")
+            raise ConfigError(
+                f"knndr_k = {self.knndr_k} must be >= 2 (a ratio needs two distances)"
+            )
         if not 0 < self.knndr_ratio <= 1:
             raise ConfigError(f"knndr_ratio = {self.knndr_ratio} must be in (0, 1]")
         if not 0 < self.max_clutter <= 1:
@@ -166,11 +169,15 @@ class RecognitionConfig:
         if not 0 < self.min_overlap <= 1:
             raise ConfigError(f"min_overlap = {self.min_overlap} must be in (0, 1]")
         if self.min_group_size < 3:
-            raise ConfigError(f"min_group_size = {self.min_group_size} must be >= 3 (a pose needs 3)")
+            raise ConfigError(
+                f"min_group_size = {self.min_group_size} must be >= 3 (a pose needs 3)"
+            )
         if not 0 <= self.ground_percentile <= 100:
             raise ConfigError(f"ground_percentile = {self.ground_percentile} must be in [0, 100]")
         if not self.template_azimuths_deg:
-            raise ConfigError("template_azimuths_deg is empty; at least one HPR viewpoint is needed")
+            raise ConfigError(
+                "template_azimuths_deg is empty; at least one HPR viewpoint is needed"
+            )
         if not self.template_elevations_deg or not all(
             -90.0 < e <= 90.0 for e in self.template_elevations_deg
         ):

@@ -20,6 +20,7 @@ class Geometry:
     Attributes:
         points: (N, 3) float64 metres (the mesh vertices for a mesh); NaN rows are kept.
         triangles: (M, 3) int64 vertex indices, or None for a point cloud.
+
     """
 
     points: np.ndarray
@@ -49,7 +50,9 @@ def _read_pcd(path: Path) -> np.ndarray:
     except ImportError:  # pragma: no cover - depends on the checkout
         import open3d as o3d
 
-        cloud = o3d.io.read_point_cloud(str(path), remove_nan_points=False, remove_infinite_points=False)
+        cloud = o3d.io.read_point_cloud(
+            str(path), remove_nan_points=False, remove_infinite_points=False
+        )
         return np.asarray(cloud.points, np.float64)
     return np.asarray(read_pcd_xyz(path), np.float64)
 
@@ -61,6 +64,7 @@ def load_geometry(path: str | Path) -> Geometry:
 
     Raises:
         InputError: the file is missing, unreadable, or of an unknown type.
+
     """
     import open3d as o3d
 
@@ -79,7 +83,9 @@ def load_geometry(path: str | Path) -> Geometry:
                 np.asarray(mesh.vertices, np.float64), np.asarray(mesh.triangles, np.int64)
             )
         if suffix == ".ply":
-            cloud = o3d.io.read_point_cloud(str(p), remove_nan_points=False, remove_infinite_points=False)
+            cloud = o3d.io.read_point_cloud(
+                str(p), remove_nan_points=False, remove_infinite_points=False
+            )
             return Geometry(np.asarray(cloud.points, np.float64), None)
         raise InputError(f"{p}: could not read any triangle")
     raise InputError(

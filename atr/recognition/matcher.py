@@ -59,6 +59,7 @@ class Detection:
         score: overlapping model vertices x (1 - clutter) after ICP (higher is better; compares targets).
         overlap: fraction of the template's vertices with a scene vertex within the overlap distance.
         inliers: RANSAC inlier correspondences of the winning hypothesis.
+
     """
 
     target: str
@@ -88,6 +89,7 @@ class RecognitionResult:
         detections: accepted detections, best score first (empty when nothing is accepted).
         stage_times_ms: wall time per stage (``STAGES`` and "total"), milliseconds; not deterministic.
         stats: counts per stage, and "reason" when the result is empty because of the input.
+
     """
 
     detections: list[Detection]
@@ -152,6 +154,7 @@ def recognize(
     Raises:
         InputError: the scene is not an (N, 3) numeric array or exceeds ``max_scene_points``.
         ConfigError: a template was built at another resolution than ``config.resolution_m``.
+
     """
     clock = _Clock()
     stats: dict[str, Any] = {}
@@ -259,7 +262,9 @@ def recognize(
             rel = np.asarray(viewpoint_m, np.float64) - keypoints
             cam_el = np.degrees(np.arctan2(rel[:, 2], np.linalg.norm(rel[:, :2], axis=1)))
             ring_of_vertex = rings[np.argmin(np.abs(cam_el[:, None] - rings[None, :]), axis=1)]
-        matches = _match_views(scene_desc[key], tpl.descriptors, views, view_el, ring_of_vertex, config)
+        matches = _match_views(
+            scene_desc[key], tpl.descriptors, views, view_el, ring_of_vertex, config
+        )
         t = clock.add("match", t)
         model_kp_all = np.asarray(tpl.keypoints_m, np.float64)
         view_groups = []
@@ -299,13 +304,19 @@ def recognize(
         t = clock.add("group", t)
         # the largest groups over all views go to RANSAC (stable: view order breaks ties)
         ranked = sorted(
-            ((vi, g) for vi, groups in enumerate(view_groups) for g in groups), key=lambda vg: -len(vg[1])
+            ((vi, g) for vi, groups in enumerate(view_groups) for g in groups),
+            key=lambda vg: -len(vg[1]),
         )[: config.max_groups]
         hyps: list[tuple[int, Any]] = []
         for vi, g in ranked:
             h = ransac_per_group(
-                keypoints, model_kp_all[views[vi][1]], matches[vi], g, config.ransac_iterations,
-                config.ransac_inlier_m, rng,
+                keypoints,
+                model_kp_all[views[vi][1]],
+                matches[vi],
+                g,
+                config.ransac_iterations,
+                config.ransac_inlier_m,
+                rng,
             )
             if h is not None and h.inliers >= config.min_group_size:
                 hyps.append((vi, h))
@@ -333,7 +344,11 @@ def recognize(
             )
             hyp_log.append(
                 (
-                    tpl.target, vi, round(v.overlap, 3), v.overlap_vertices, round(v.clutter, 3),
+                    tpl.target,
+                    vi,
+                    round(v.overlap, 3),
+                    v.overlap_vertices,
+                    round(v.clutter, 3),
                     *(round(float(x), 2) for x in v.T_scene_model[:3, 3]),
                 )
             )
@@ -390,7 +405,7 @@ def _match_views(
     ring_of_vertex: np.ndarray,
     config: RecognitionConfig,
 ) -> list[Correspondences]:
-    """kNNDR of each scene keypoint against the views of its elevation ring.
+    """KNNDR of each scene keypoint against the views of its elevation ring.
 
     ``config.knn_across_views``: the k nearest are taken over all views of the ring together (one
     neighbour list per keypoint, then split by view); otherwise each view has its own k nearest.
@@ -420,7 +435,10 @@ def _match_views(
             for v in in_ring:
                 n = views[v][1].stop - views[v][1].start
                 c = knndr_from_distances(
-                    d2[:, start : start + n], config.knndr_k, config.knndr_ratio, config.max_correspondences
+                    d2[:, start : start + n],
+                    config.knndr_k,
+                    config.knndr_ratio,
+                    config.max_correspondences,
                 )
                 out[v] = Correspondences(rows[c.scene], c.model, c.distance)
                 start += n
@@ -441,6 +459,7 @@ def suppress_non_maxima(
 
     Returns:
         Kept detections, best score first (ties keep input order).
+
     """
     order = sorted(range(len(candidates)), key=lambda i: -candidates[i][0].score)
     kept: list[int] = []

@@ -31,6 +31,7 @@ def uniform_subsample(points: np.ndarray, leaf_m: float) -> np.ndarray:
 
     Returns:
         (M,) int64 indices into ``points``, M <= N.
+
     """
     if leaf_m <= 0:
         raise InputError(f"subsampling leaf {leaf_m} m must be > 0")
@@ -69,6 +70,7 @@ def filter_smooth_surfaces(
 
     Returns:
         (N,) bool, True = kept (not smooth).
+
     """
     n = len(points)
     if n == 0:
@@ -102,6 +104,7 @@ def height_above_ground(
 
     Returns:
         (N,) float64 heights, metres (negative below the estimated ground).
+
     """
     from scipy import ndimage
 
@@ -129,6 +132,7 @@ class Correspondences:
         scene: (C,) int64 indices of scene keypoints.
         model: (C,) int64 indices of model keypoints.
         distance: (C,) float64 descriptor distances (L2), best first.
+
     """
 
     scene: np.ndarray
@@ -159,7 +163,7 @@ def descriptor_sq_distances(scene_desc: np.ndarray, model_desc: np.ndarray) -> n
 def knndr_from_distances(
     d2: np.ndarray, k: int, ratio: float, max_correspondences: int | None = None
 ) -> Correspondences:
-    """kNNDR on a precomputed (S, M) squared-distance matrix (see ``match_knndr``).
+    """KNNDR on a precomputed (S, M) squared-distance matrix (see ``match_knndr``).
 
     Rows or columns with non-finite distances (NaN descriptors) are ignored.
     """
@@ -211,6 +215,7 @@ def match_knndr(
 
     Returns:
         Correspondences sorted by distance (ties by scene then model index).
+
     """
     s = np.asarray(scene_desc)
     m = np.asarray(model_desc)
@@ -220,7 +225,9 @@ def match_knndr(
     m_ok = np.flatnonzero(np.isfinite(m).all(axis=1))
     if len(s_ok) == 0 or len(m_ok) < 2:
         return Correspondences(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
-    c = knndr_from_distances(descriptor_sq_distances(s[s_ok], m[m_ok]), k, ratio, max_correspondences)
+    c = knndr_from_distances(
+        descriptor_sq_distances(s[s_ok], m[m_ok]), k, ratio, max_correspondences
+    )
     return Correspondences(s_ok[c.scene], m_ok[c.model], c.distance)
 
 
@@ -290,6 +297,7 @@ def group_geometrically_consistent(
 
     Returns:
         list of (G_i,) int64 arrays of indices into ``corr``, largest first.
+
     """
     if len(corr) < min_size:
         return []
@@ -344,6 +352,7 @@ def group_upright_hough(
 
     Returns:
         list of (G_i,) int64 arrays of indices into ``corr``, largest first.
+
     """
     if len(corr) < min_size:
         return []
@@ -422,6 +431,7 @@ class Hypothesis:
         T_scene_model: (4, 4) float64, maps model coordinates into the scene.
         inliers: RANSAC inliers among the group's correspondences.
         group_size: correspondences in the group.
+
     """
 
     T_scene_model: np.ndarray
@@ -463,6 +473,7 @@ def ransac_per_group(
 
     Returns:
         The hypothesis, or None when the group has fewer than 3 correspondences or no non-degenerate sample.
+
     """
     s = np.asarray(scene_keypoints[corr.scene[group]], np.float64)
     m = np.asarray(model_keypoints[corr.model[group]], np.float64)
@@ -506,6 +517,7 @@ class Verification:
         clutter: fraction of the scene vertices inside the model's box (above its ground slab) that no model
             vertex explains; 0 when the box holds no scene vertex.
         rmse_m: RMS distance of the overlapping vertices, metres.
+
     """
 
     T_scene_model: np.ndarray
@@ -549,6 +561,7 @@ def verify_with_icp(
 
     Returns:
         The refined pose and its fit with the scene.
+
     """
     model_points = np.asarray(model_points, np.float64)
     src = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(model_points))
@@ -578,7 +591,9 @@ def verify_with_icp(
     # Scene side: scene vertices inside the model's box, in the model frame.
     lo, hi = model_points.min(0), model_points.max(0)
     centre = 0.5 * (lo + hi)
-    near = scene_tree.query_ball_point(R @ centre + t, float(np.linalg.norm(hi - lo)) / 2 + overlap_m)
+    near = scene_tree.query_ball_point(
+        R @ centre + t, float(np.linalg.norm(hi - lo)) / 2 + overlap_m
+    )
     clutter = 0.0
     if near:
         local = (np.asarray(scene_points)[np.sort(near)] - t) @ R  # R^T (p - t)

@@ -16,7 +16,9 @@ import open3d as o3d
 from atr.recognition.template import hidden_point_removal, sample_mesh_surface
 
 
-def _box(size: tuple[float, float, float], centre: tuple[float, float, float]) -> o3d.geometry.TriangleMesh:
+def _box(
+    size: tuple[float, float, float], centre: tuple[float, float, float]
+) -> o3d.geometry.TriangleMesh:
     m = o3d.geometry.TriangleMesh.create_box(*size)
     m.translate(np.asarray(centre) - 0.5 * np.asarray(size))
     return m
@@ -27,9 +29,13 @@ def _cylinder(
 ) -> o3d.geometry.TriangleMesh:
     m = o3d.geometry.TriangleMesh.create_cylinder(radius, height, resolution=24, split=1)
     if axis == "x":
-        m.rotate(o3d.geometry.get_rotation_matrix_from_xyz((0.0, math.pi / 2, 0.0)), center=(0, 0, 0))
+        m.rotate(
+            o3d.geometry.get_rotation_matrix_from_xyz((0.0, math.pi / 2, 0.0)), center=(0, 0, 0)
+        )
     elif axis == "y":
-        m.rotate(o3d.geometry.get_rotation_matrix_from_xyz((math.pi / 2, 0.0, 0.0)), center=(0, 0, 0))
+        m.rotate(
+            o3d.geometry.get_rotation_matrix_from_xyz((math.pi / 2, 0.0, 0.0)), center=(0, 0, 0)
+        )
     m.translate(centre)
     return m
 
@@ -46,6 +52,7 @@ def tank_like() -> tuple[np.ndarray, np.ndarray]:
 
     Returns:
         vertices (V, 3) metres, triangles (M, 3).
+
     """
     parts = [
         _box((6.9, 3.4, 0.9), (0.0, 0.0, 0.95)),  # hull
@@ -140,6 +147,7 @@ def aerial_scene(
 
     Returns:
         (N, 3) float64 world points, metres.
+
     """
     rng = np.random.default_rng(seed)
     clouds = []
@@ -147,12 +155,16 @@ def aerial_scene(
     keep_out = 8.0
     for (v, f), T in vehicles:
         vw = v @ T[:3, :3].T + T[:3, 3]
-        clouds.append(sample_mesh_surface(vw, f, samples_per_m2, seed=int(rng.integers(1 << 31)))[0])
+        clouds.append(
+            sample_mesh_surface(vw, f, samples_per_m2, seed=int(rng.integers(1 << 31)))[0]
+        )
     for v, f in [ground, *clutter_meshes(rng, n_clutter, extent_m, keep_out)]:
         clouds.append(sample_mesh_surface(v, f, samples_per_m2, seed=int(rng.integers(1 << 31)))[0])
     pts = np.concatenate(clouds)
     el, az = math.radians(elevation_deg), math.radians(azimuth_deg)
-    vp = range_m * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    vp = range_m * np.array(
+        [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
+    )
     pts = pts[hidden_point_removal(pts, vp[None], 100.0)]
     if noise_m > 0:
         pts = pts + rng.normal(0.0, noise_m, pts.shape)

@@ -36,6 +36,7 @@ class Template:
         descriptors: (K, L) float32, one row per keypoint (rows with NaN were dropped).
         radius_m: descriptor support radius, metres.
         params: scalars and short lists describing how it was built (resolution_m, views, version...).
+
     """
 
     target: str
@@ -134,13 +135,18 @@ def sample_mesh_surface(
 
     Returns:
         points (P, 3) float64 metres, normals (P, 3) float64 unit (winding-oriented face normals).
+
     """
     v = np.asarray(vertices, np.float64)
     f = np.asarray(triangles, np.int64)
     if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
-        raise InputError(f"mesh must be vertices (V, 3) and triangles (M, 3); got {v.shape}, {f.shape}")
+        raise InputError(
+            f"mesh must be vertices (V, 3) and triangles (M, 3); got {v.shape}, {f.shape}"
+        )
     if f.min() < 0 or f.max() >= len(v):
-        raise InputError(f"triangle indices span [{f.min()}, {f.max()}], vertices are 0..{len(v) - 1}")
+        raise InputError(
+            f"triangle indices span [{f.min()}, {f.max()}], vertices are 0..{len(v) - 1}"
+        )
     if not np.isfinite(v).all():
         raise InputError("mesh vertices contain NaN or infinity")
     a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
@@ -161,7 +167,8 @@ def sample_mesh_surface(
 
 def aerial_viewpoints(centre: np.ndarray, config: RecognitionConfig) -> np.ndarray:
     """HPR viewpoints (V, 3), metres: ``template_distance_m`` from ``centre`` at every configured
-    elevation (outer loop) and azimuth (inner loop), z up."""
+    elevation (outer loop) and azimuth (inner loop), z up.
+    """
     out = []
     for el_deg in config.template_elevations_deg:
         el = math.radians(el_deg)
@@ -172,7 +179,9 @@ def aerial_viewpoints(centre: np.ndarray, config: RecognitionConfig) -> np.ndarr
     return np.array(out)
 
 
-def hidden_point_removal(points: np.ndarray, viewpoints: np.ndarray, radius_factor: float) -> np.ndarray:
+def hidden_point_removal(
+    points: np.ndarray, viewpoints: np.ndarray, radius_factor: float
+) -> np.ndarray:
     """Indices of points visible from at least one viewpoint (Katz et al. 2007, via Open3D).
 
     Args:
@@ -182,6 +191,7 @@ def hidden_point_removal(points: np.ndarray, viewpoints: np.ndarray, radius_fact
 
     Returns:
         (M,) int64 sorted unique indices.
+
     """
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, np.float64)))
     centre = np.asarray(points).mean(0)
@@ -217,6 +227,7 @@ def template_from_points(
 
     Returns:
         The template.
+
     """
     if descriptor not in DESCRIPTORS:
         raise InputError(f"descriptor {descriptor!r} must be one of {DESCRIPTORS}")
@@ -294,6 +305,7 @@ def build_template(
 
     Returns:
         The template; ``params`` records the views used and their row counts.
+
     """
     dense, face_normals = sample_mesh_surface(
         mesh_vertices, mesh_triangles, config.template_samples_per_m2, seed=0
@@ -310,7 +322,9 @@ def build_template(
         kept = _view_points(dense, face_normals, vp, config)
         kept = kept[above[kept]]
         if len(kept) == 0:
-            raise InputError(f"no point of target {target!r} is visible from viewpoint {vp.tolist()}")
+            raise InputError(
+                f"no point of target {target!r} is visible from viewpoint {vp.tolist()}"
+            )
         parts.append(
             template_from_points(
                 dense[kept], target, descriptor, config, orientation_normals=face_normals[kept]
@@ -321,8 +335,12 @@ def build_template(
         {
             "source": "mesh",
             "template_elevations_deg": list(config.template_elevations_deg),
-            "view_azimuths_deg": [a for _ in config.template_elevations_deg for a in config.template_azimuths_deg],
-            "view_elevations_deg": [e for e in config.template_elevations_deg for _ in config.template_azimuths_deg],
+            "view_azimuths_deg": [
+                a for _ in config.template_elevations_deg for a in config.template_azimuths_deg
+            ],
+            "view_elevations_deg": [
+                e for e in config.template_elevations_deg for _ in config.template_azimuths_deg
+            ],
             "template_azimuths_deg": list(config.template_azimuths_deg),
             "template_distance_m": config.template_distance_m,
             "dense_points": int(len(dense)),
@@ -348,4 +366,3 @@ def model_extent_m(template: Template) -> float:
     """Largest extent of the template's points, metres (used to size non-maximum suppression)."""
     p = np.asarray(template.points_m, np.float64)
     return float(np.linalg.norm(p.max(0) - p.min(0))) if len(p) else 0.0
-

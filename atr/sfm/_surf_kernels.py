@@ -70,12 +70,12 @@ def hessian_layers(ii, sizes, step):
                 c = gc * step
                 if c - half < 0 or c + half >= w:
                     continue
-                dxx = _box_inside(ii, r - lobe + 1, c - half, 2 * lobe - 1, size) - 3.0 * _box_inside(
-                    ii, r - lobe + 1, c - lobe // 2, 2 * lobe - 1, lobe
-                )
-                dyy = _box_inside(ii, r - half, c - lobe + 1, size, 2 * lobe - 1) - 3.0 * _box_inside(
-                    ii, r - lobe // 2, c - lobe + 1, lobe, 2 * lobe - 1
-                )
+                dxx = _box_inside(
+                    ii, r - lobe + 1, c - half, 2 * lobe - 1, size
+                ) - 3.0 * _box_inside(ii, r - lobe + 1, c - lobe // 2, 2 * lobe - 1, lobe)
+                dyy = _box_inside(
+                    ii, r - half, c - lobe + 1, size, 2 * lobe - 1
+                ) - 3.0 * _box_inside(ii, r - lobe // 2, c - lobe + 1, lobe, 2 * lobe - 1)
                 dxy = (
                     _box_inside(ii, r - lobe, c + 1, lobe, lobe)
                     + _box_inside(ii, r + 1, c - lobe, lobe, lobe)
@@ -131,13 +131,22 @@ def find_extrema(det, lap, sizes, step, threshold):
                 hyy = det[k, r + 1, c] - 2.0 * v + det[k, r - 1, c]
                 hss = det[k + 1, r, c] - 2.0 * v + det[k - 1, r, c]
                 hxy = 0.25 * (
-                    det[k, r + 1, c + 1] - det[k, r + 1, c - 1] - det[k, r - 1, c + 1] + det[k, r - 1, c - 1]
+                    det[k, r + 1, c + 1]
+                    - det[k, r + 1, c - 1]
+                    - det[k, r - 1, c + 1]
+                    + det[k, r - 1, c - 1]
                 )
                 hxs = 0.25 * (
-                    det[k + 1, r, c + 1] - det[k + 1, r, c - 1] - det[k - 1, r, c + 1] + det[k - 1, r, c - 1]
+                    det[k + 1, r, c + 1]
+                    - det[k + 1, r, c - 1]
+                    - det[k - 1, r, c + 1]
+                    + det[k - 1, r, c - 1]
                 )
                 hys = 0.25 * (
-                    det[k + 1, r + 1, c] - det[k + 1, r - 1, c] - det[k - 1, r + 1, c] + det[k - 1, r - 1, c]
+                    det[k + 1, r + 1, c]
+                    - det[k + 1, r - 1, c]
+                    - det[k - 1, r + 1, c]
+                    + det[k - 1, r - 1, c]
                 )
                 H = np.array([[hxx, hxy, hxs], [hxy, hyy, hys], [hxs, hys, hss]])
                 g = np.array([gx, gy, gs])
@@ -166,13 +175,17 @@ def find_extrema(det, lap, sizes, step, threshold):
 @numba.njit(cache=True, inline="always")
 def _haar_x(ii, r, c, side):
     half = side // 2
-    return _box_clamped(ii, r - half, c, side, half) - _box_clamped(ii, r - half, c - half, side, half)
+    return _box_clamped(ii, r - half, c, side, half) - _box_clamped(
+        ii, r - half, c - half, side, half
+    )
 
 
 @numba.njit(cache=True, inline="always")
 def _haar_y(ii, r, c, side):
     half = side // 2
-    return _box_clamped(ii, r, c - half, half, side) - _box_clamped(ii, r - half, c - half, half, side)
+    return _box_clamped(ii, r, c - half, half, side) - _box_clamped(
+        ii, r - half, c - half, half, side
+    )
 
 
 @numba.njit(cache=True)
@@ -242,9 +255,9 @@ def describe(ii, keypoints, upright):
         side += side % 2
         acc = np.zeros(64)
         for a in range(_DESC_SAMPLES):
-            u = (a + 0.5 - 0.5 * _DESC_SAMPLES)  # in units of s
+            u = a + 0.5 - 0.5 * _DESC_SAMPLES  # in units of s
             for b in range(_DESC_SAMPLES):
-                v = (b + 0.5 - 0.5 * _DESC_SAMPLES)
+                v = b + 0.5 - 0.5 * _DESC_SAMPLES
                 px = x + s * (u * co - v * si)
                 py = y + s * (u * si + v * co)
                 r = int(round(py))

@@ -29,6 +29,7 @@ def as_gray_u8(image: np.ndarray, name: str) -> np.ndarray:
 
     Raises:
         InputError: empty, wrong rank or channel count, non-finite values.
+
     """
     img = np.asarray(image)
     if img.ndim == 3 and img.shape[2] == 3:
@@ -36,7 +37,9 @@ def as_gray_u8(image: np.ndarray, name: str) -> np.ndarray:
     elif img.ndim == 3 and img.shape[2] == 1:
         img = img[:, :, 0]
     if img.ndim != 2 or img.size == 0:
-        raise InputError(f"{name} has shape {np.asarray(image).shape}, expected (H, W) or (H, W, 3)")
+        raise InputError(
+            f"{name} has shape {np.asarray(image).shape}, expected (H, W) or (H, W, 3)"
+        )
     if img.dtype == np.uint8:
         return np.ascontiguousarray(img)
     if not np.issubdtype(img.dtype, np.floating):
@@ -71,6 +74,7 @@ def gftt_klt_correspondences(
 
     Raises:
         InputError: malformed images or different sizes.
+
     """
     pixels_a, pixels_b, _ = gftt_klt_with_stats(image_a, image_b, config)
     return pixels_a, pixels_b
@@ -129,6 +133,7 @@ def detect_gftt(gray_u8: np.ndarray, config: SfmConfig) -> np.ndarray:
 
     Returns:
         (N, 2) float32 pixel coordinates (x, y), strongest first; N = 0 on a flat image.
+
     """
     k = config.gftt_filter_size_px
     smoothed = cv2.GaussianBlur(gray_u8, (k, k), 0) if k > 1 else gray_u8
@@ -159,6 +164,7 @@ def surf_correspondences(
 
     Raises:
         InputError: malformed images or different sizes.
+
     """
     pixels_a, pixels_b, _ = surf_with_stats(image_a, image_b, config)
     return pixels_a, pixels_b
@@ -197,6 +203,7 @@ def match_nndr(
 
     Returns:
         (M,) int64 indices into a and (M,) int64 indices into b, sorted by index into a.
+
     """
     matcher = cv2.BFMatcher(cv2.NORM_L2)
     knn = matcher.knnMatch(descriptors_a.astype(np.float32), descriptors_b.astype(np.float32), k=2)

@@ -7,7 +7,12 @@ import time
 import numpy as np
 
 from atr.sfm.config import SfmConfig
-from atr.sfm.correspondences import as_gray_u8, check_same_size, gftt_klt_with_stats, surf_with_stats
+from atr.sfm.correspondences import (
+    as_gray_u8,
+    check_same_size,
+    gftt_klt_with_stats,
+    surf_with_stats,
+)
 from atr.sfm.triangulation import (
     SfmCloud,
     triangulate_known_pose,
@@ -41,6 +46,7 @@ def reconstruct(
 
     Raises:
         InputError: malformed or differently sized images, malformed K, non-finite or non-rigid poses.
+
     """
     gray_a = as_gray_u8(image_a, "image_a")
     gray_b = as_gray_u8(image_b, "image_b")

@@ -1,5 +1,6 @@
 """Detector repeatability and matching score under a known homography (Mikolajczyk et al. 2005,
-simplified to point distances), used to compare our SURF with OpenCV's SIFT."""
+simplified to point distances), used to compare our SURF with OpenCV's SIFT.
+"""
 
 from __future__ import annotations
 
@@ -18,7 +19,12 @@ def _common(points_a, points_b, H, size_a, size_b):
     back_b = map_points(np.linalg.inv(H), points_b)
     w_b, h_b = size_b
     w_a, h_a = size_a
-    in_b = (mapped_a[:, 0] >= 0) & (mapped_a[:, 0] < w_b) & (mapped_a[:, 1] >= 0) & (mapped_a[:, 1] < h_b)
+    in_b = (
+        (mapped_a[:, 0] >= 0)
+        & (mapped_a[:, 0] < w_b)
+        & (mapped_a[:, 1] >= 0)
+        & (mapped_a[:, 1] < h_b)
+    )
     in_a = (back_b[:, 0] >= 0) & (back_b[:, 0] < w_a) & (back_b[:, 1] >= 0) & (back_b[:, 1] < h_a)
     return mapped_a, in_b, in_a
 
@@ -43,6 +49,7 @@ def repeatability(
 
     Returns:
         repeated / min(keypoints of a seen in b, keypoints of b seen in a); 0 when none is common.
+
     """
     mapped_a, in_b, in_a = _common(points_a, points_b, H_b_a, size_a, size_b)
     n_common = min(int(in_b.sum()), int(in_a.sum()))
@@ -73,6 +80,7 @@ def matching_score(
 
     Returns:
         (matching score = correct / min(common keypoints), precision = correct / M).
+
     """
     mapped_a, in_b, in_a = _common(points_a, points_b, H_b_a, size_a, size_b)
     n_common = min(int(in_b.sum()), int(in_a.sum()))

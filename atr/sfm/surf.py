@@ -39,6 +39,7 @@ def surf_filter_sizes(octave: int, levels: int) -> np.ndarray:
 
     Returns:
         (levels,) int64 odd filter sides, e.g. 9, 15, 21, 27, ... for octave 0.
+
     """
     first = 3 * (2 ** (octave + 1) + 1)
     increment = 6 * 2**octave
@@ -51,6 +52,7 @@ class Surf:
     Args:
         config: uses surf_octaves, surf_scale_levels, surf_blob_threshold, surf_initial_step_px,
             surf_max_keypoints and surf_upright.
+
     """
 
     def __init__(self, config: SfmConfig | None = None) -> None:
@@ -68,6 +70,7 @@ class Surf:
 
         Raises:
             InputError: not a 2-D finite image.
+
         """
         integral = self._integral(gray_float01)
         return self._detect(integral)
@@ -84,12 +87,15 @@ class Surf:
 
         Raises:
             InputError: not a 2-D finite image.
+
         """
         integral = self._integral(gray_float01)
         found = self._detect(integral)
         if found.shape[0] == 0:
             return np.zeros((0, 4), np.float32), np.zeros((0, 64), np.float32)
-        angles, descriptors = kernels.describe(integral, found[:, :3].copy(), self.config.surf_upright)
+        angles, descriptors = kernels.describe(
+            integral, found[:, :3].copy(), self.config.surf_upright
+        )
         keypoints = np.c_[found[:, :3], angles].astype(np.float32)
         return keypoints, descriptors
 

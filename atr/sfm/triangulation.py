@@ -35,6 +35,7 @@ class SfmCloud:
             "rejected_reprojection", "rejected_parallax", "rejected_sigma", "baseline_m", ... .
         reason: empty when the pair was processed; otherwise why the cloud is empty
             (e.g. "zero baseline 0.0 m < 0.001 m", "no keypoints in image a").
+
     """
 
     points_world_m: np.ndarray
@@ -56,6 +57,7 @@ class SfmCloud:
 
         Returns:
             A cloud with zero points and the given reason.
+
         """
         return cls(
             points_world_m=np.zeros((0, 3), np.float64),
@@ -79,6 +81,7 @@ def validate_pose(T: np.ndarray, name: str) -> np.ndarray:
     Raises:
         InputError: wrong shape, non-finite entries, a bottom row other than [0, 0, 0, 1], or a
             rotation block that is not orthonormal with determinant +1.
+
     """
     T = np.asarray(T, dtype=np.float64)
     if T.shape != (4, 4):
@@ -105,6 +108,7 @@ def validate_intrinsics(K: np.ndarray) -> np.ndarray:
 
     Raises:
         InputError: wrong shape, non-finite entries, non-positive focal lengths, bad last row.
+
     """
     K = np.asarray(K, dtype=np.float64)
     if K.shape != (3, 3):
@@ -114,7 +118,9 @@ def validate_intrinsics(K: np.ndarray) -> np.ndarray:
     if not (K[0, 0] > 0.0 and K[1, 1] > 0.0):
         raise InputError(f"K focal lengths fx={K[0, 0]}, fy={K[1, 1]} must be > 0")
     if not np.allclose(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0.0:
-        raise InputError(f"K {K.tolist()} is not an upper-triangular pinhole matrix with K[2] = [0, 0, 1]")
+        raise InputError(
+            f"K {K.tolist()} is not an upper-triangular pinhole matrix with K[2] = [0, 0, 1]"
+        )
     return K
 
 
@@ -139,6 +145,7 @@ def relative_camera_pose(T_world_cam_a: np.ndarray, T_world_cam_b: np.ndarray) -
 
     Returns:
         (4, 4) float64 T_cam_b_cam_a: maps points in camera a's frame to camera b's frame.
+
     """
     return np.linalg.inv(T_world_cam_b) @ T_world_cam_a
 
@@ -167,6 +174,7 @@ def triangulate_known_pose(
 
     Raises:
         InputError: malformed pixels, K or poses (shape, non-finite, not rigid).
+
     """
     a, b = _validate_pixels(pixels_a, pixels_b)
     K = validate_intrinsics(K)

@@ -14,7 +14,21 @@ from atr.sim.vehicles import VEHICLES, car, ifv, t72, truck_6x6
 from atr.sim.world import World, build_world
 
 __all__ = [
-    "VEHICLES", "Mesh", "Scenario", "SensorFrame", "SimConfig", "TargetTruth", "World",
-    "all_scenarios", "build_world", "car", "custom_scenario", "ifv", "imu_samples", "scenario",
-    "simulate_flight", "t72", "truck_6x6",
+    "VEHICLES",
+    "Mesh",
+    "Scenario",
+    "SensorFrame",
+    "SimConfig",
+    "TargetTruth",
+    "World",
+    "all_scenarios",
+    "build_world",
+    "car",
+    "custom_scenario",
+    "ifv",
+    "imu_samples",
+    "scenario",
+    "simulate_flight",
+    "t72",
+    "truck_6x6",
 ]

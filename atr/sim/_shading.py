@@ -14,30 +14,35 @@ import numpy as np
 
 from atr.sim import materials as M
 
-
 # contrast of the micro detail per material index (0: none); see materials.py for the indices
-_ROUGHNESS = np.array([
-    0.5,   # ground (resolved per point; this row unused)
-    0.55,  # asphalt
-    0.35,  # concrete
-    0.3,   # brick
-    0.25,  # facade
-    0.5,   # roof
-    0.3,   # roof tile
-    0.6,   # grass
-    0.6,   # foliage
-    0.5,   # bark
-    0.25,  # camouflage
-    0.3,   # metal
-    0.2,   # rubber
-    0.05,  # glass
-    0.25,  # olive drab
-    0.3,   # canvas
-    0.06, 0.06, 0.06, 0.06, 0.06,  # paints
-    0.6,   # dirt
-    0.25,  # default
-    0.25,  # sand paint
-])
+_ROUGHNESS = np.array(
+    [
+        0.5,  # ground (resolved per point; this row unused)
+        0.55,  # asphalt
+        0.35,  # concrete
+        0.3,  # brick
+        0.25,  # facade
+        0.5,  # roof
+        0.3,  # roof tile
+        0.6,  # grass
+        0.6,  # foliage
+        0.5,  # bark
+        0.25,  # camouflage
+        0.3,  # metal
+        0.2,  # rubber
+        0.05,  # glass
+        0.25,  # olive drab
+        0.3,  # canvas
+        0.06,
+        0.06,
+        0.06,
+        0.06,
+        0.06,  # paints
+        0.6,  # dirt
+        0.25,  # default
+        0.25,  # sand paint
+    ]
+)
 
 
 @numba.njit(cache=True)
@@ -93,8 +98,15 @@ def value_noise2(x: float, y: float, seed: int) -> float:
 
 
 @numba.njit(cache=True)
-def fbm2(u: float, v: float, wavelength_m: float, octaves: int, footprint_m: float, seed: int,
-         gain: float = 0.55) -> float:
+def fbm2(
+    u: float,
+    v: float,
+    wavelength_m: float,
+    octaves: int,
+    footprint_m: float,
+    seed: int,
+    gain: float = 0.55,
+) -> float:
     """2D fractal value noise in [0, 1], mean 0.5, on surface coordinates; band-limited like fbm."""
     total = 0.0
     norm = 0.0
@@ -115,8 +127,9 @@ def fbm2(u: float, v: float, wavelength_m: float, octaves: int, footprint_m: flo
 
 
 @numba.njit(cache=True)
-def fbm(x: float, y: float, z: float, wavelength_m: float, octaves: int, footprint_m: float,
-        seed: int) -> float:
+def fbm(
+    x: float, y: float, z: float, wavelength_m: float, octaves: int, footprint_m: float, seed: int
+) -> float:
     """Fractal value noise in [0, 1], mean 0.5; octaves finer than ~2 footprints fade out."""
     total = 0.0
     norm = 0.0
@@ -126,8 +139,9 @@ def fbm(x: float, y: float, z: float, wavelength_m: float, octaves: int, footpri
         w = (lam / footprint_m - 1.5) / 1.5
         w = min(max(w, 0.0), 1.0)
         if w > 0.0:
-            n = value_noise(x / lam + 17.3 * k, y / lam - 9.1 * k, z / lam + 3.7 * k,
-                            seed + 101 * k)
+            n = value_noise(
+                x / lam + 17.3 * k, y / lam - 9.1 * k, z / lam + 3.7 * k, seed + 101 * k
+            )
         else:
             n = 0.5
         total += amp * (w * n + (1.0 - w) * 0.5)
@@ -174,8 +188,18 @@ def _ground_class(x: float, y: float, rects: np.ndarray, fp: float, seed: int) -
 
 
 @numba.njit(cache=True)
-def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz: float, fp: float,
-                rects: np.ndarray, seed: int) -> tuple[float, float, float]:
+def _albedo_one(
+    mat: int,
+    x: float,
+    y: float,
+    z: float,
+    nx: float,
+    ny: float,
+    nz: float,
+    fp: float,
+    rects: np.ndarray,
+    seed: int,
+) -> tuple[float, float, float]:
     s = seed * 7919 + mat * 131
     if mat == M.GROUND:
         mat = _ground_class(x, y, rects, fp, seed)
@@ -228,7 +252,8 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
         g = _mix(0.40, 0.47, tint)
         b = _mix(0.36, 0.36, tint)
         grime = (0.65 + 0.7 * fbm2(u, v, 3.0, 7, fp, s, 0.7)) * (
-            0.8 + 0.4 * fbm2(u, v, 0.3, 3, fp, s + 4))
+            0.8 + 0.4 * fbm2(u, v, 0.3, 3, fp, s + 4)
+        )
         r *= grime
         g *= grime
         b *= grime
@@ -251,7 +276,8 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
                 b *= 0.64
     elif mat == M.ROOF:
         k = (0.45 + 1.1 * fbm2(u, v, 0.5, 6, fp, s, 0.8)) * (
-            0.7 + 0.6 * fbm2(u, v, 5.0, 2, fp, s + 1))
+            0.7 + 0.6 * fbm2(u, v, 5.0, 2, fp, s + 1)
+        )
         r, g, b = 0.12 * k, 0.115 * k, 0.11 * k
     elif mat == M.ROOF_TILE:
         ridge = _lines(z, 0.22, 0.05, fp)
@@ -318,7 +344,8 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
         b *= k
     elif mat == M.DIRT:
         k = (0.4 + 1.2 * fbm2(u, v, 0.4, 6, fp, s, 0.8)) * (
-            0.7 + 0.6 * fbm2(u, v, 4.0, 2, fp, s + 1))
+            0.7 + 0.6 * fbm2(u, v, 4.0, 2, fp, s + 1)
+        )
         r, g, b = 0.17 * k, 0.12 * k, 0.075 * k
     # micro detail: grain a few centimetres across, strong on rough materials; it fades out with
     # range
@@ -333,8 +360,14 @@ def _albedo_one(mat: int, x: float, y: float, z: float, nx: float, ny: float, nz
 
 
 @numba.njit(cache=True, parallel=True)
-def albedo(mat: np.ndarray, pos: np.ndarray, nrm: np.ndarray, footprint_m: np.ndarray,
-           rects: np.ndarray, seed: int) -> np.ndarray:
+def albedo(
+    mat: np.ndarray,
+    pos: np.ndarray,
+    nrm: np.ndarray,
+    footprint_m: np.ndarray,
+    rects: np.ndarray,
+    seed: int,
+) -> np.ndarray:
     """Linear RGB albedo (N, 3) float32 of N surface points.
 
     Args:
@@ -344,12 +377,23 @@ def albedo(mat: np.ndarray, pos: np.ndarray, nrm: np.ndarray, footprint_m: np.nd
         footprint_m: (N,) float64 size of one pixel on the surface, metres.
         rects: (K, 7) float64 ground map rectangles (cx, cy, half_u, half_v, cos, sin, material).
         seed: world seed (textures differ between worlds).
+
     """
     n = mat.shape[0]
     out = np.empty((n, 3), np.float32)
     for i in numba.prange(n):
-        r, g, b = _albedo_one(int(mat[i]), pos[i, 0], pos[i, 1], pos[i, 2], nrm[i, 0], nrm[i, 1],
-                              nrm[i, 2], footprint_m[i], rects, seed)
+        r, g, b = _albedo_one(
+            int(mat[i]),
+            pos[i, 0],
+            pos[i, 1],
+            pos[i, 2],
+            nrm[i, 0],
+            nrm[i, 1],
+            nrm[i, 2],
+            footprint_m[i],
+            rects,
+            seed,
+        )
         out[i, 0] = r
         out[i, 1] = g
         out[i, 2] = b
@@ -373,16 +417,24 @@ def make_rays(dirs_cam: np.ndarray, R: np.ndarray, origin: np.ndarray) -> np.nda
 
 
 @numba.njit(cache=True, parallel=True)
-def surface_points(rays: np.ndarray, t_hit: np.ndarray, prim: np.ndarray, geom: np.ndarray,
-                   nrm_in: np.ndarray, mat_static: np.ndarray, mat_target: np.ndarray,
-                   target_gid: int,
-                   focal_px: float, grazing_cos_min: float, sun: np.ndarray, shadow_bias_m: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                              np.ndarray,
-                              np.ndarray]:
+def surface_points(
+    rays: np.ndarray,
+    t_hit: np.ndarray,
+    prim: np.ndarray,
+    geom: np.ndarray,
+    nrm_in: np.ndarray,
+    mat_static: np.ndarray,
+    mat_target: np.ndarray,
+    target_gid: int,
+    focal_px: float,
+    grazing_cos_min: float,
+    sun: np.ndarray,
+    shadow_bias_m: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per pixel: hit position, camera-facing normal, material (-1: sky), footprint, range, cos to
     the sun
-    and the shadow ray towards the sun."""
+    and the shadow ray towards the sun.
+    """
     n = rays.shape[0]
     pos = np.empty((n, 3))
     nrm = np.empty((n, 3))
@@ -429,10 +481,23 @@ def surface_points(rays: np.ndarray, t_hit: np.ndarray, prim: np.ndarray, geom: 
 
 
 @numba.njit(cache=True, parallel=True)
-def compose(mat: np.ndarray, pos: np.ndarray, nrm: np.ndarray, fp: np.ndarray, dist: np.ndarray,
-            direct: np.ndarray, rays: np.ndarray, rects: np.ndarray, seed: int, sun_rgb: np.ndarray,
-            sky_rgb: np.ndarray, haze_rgb: np.ndarray, zenith_rgb: np.ndarray, haze_k: float,
-            exposure: float) -> np.ndarray:
+def compose(
+    mat: np.ndarray,
+    pos: np.ndarray,
+    nrm: np.ndarray,
+    fp: np.ndarray,
+    dist: np.ndarray,
+    direct: np.ndarray,
+    rays: np.ndarray,
+    rects: np.ndarray,
+    seed: int,
+    sun_rgb: np.ndarray,
+    sky_rgb: np.ndarray,
+    haze_rgb: np.ndarray,
+    zenith_rgb: np.ndarray,
+    haze_k: float,
+    exposure: float,
+) -> np.ndarray:
     """(N, 3) float32 linear RGB after exposure: albedo x (sun + sky), haze; sky where rays miss."""
     n = mat.shape[0]
     out = np.empty((n, 3), np.float32)
@@ -444,8 +509,18 @@ def compose(mat: np.ndarray, pos: np.ndarray, nrm: np.ndarray, fp: np.ndarray, d
             for c in range(3):
                 out[i, c] = ((1 - w) * haze_rgb[c] + w * zenith_rgb[c]) * 0.75
             continue
-        r, g, b = _albedo_one(int(mat[i]), pos[i, 0], pos[i, 1], pos[i, 2], nrm[i, 0], nrm[i, 1],
-                              nrm[i, 2], fp[i], rects, seed)
+        r, g, b = _albedo_one(
+            int(mat[i]),
+            pos[i, 0],
+            pos[i, 1],
+            pos[i, 2],
+            nrm[i, 0],
+            nrm[i, 1],
+            nrm[i, 2],
+            fp[i],
+            rects,
+            seed,
+        )
         sky = 0.55 + 0.45 * nrm[i, 2]
         f = np.exp(-haze_k * dist[i])
         alb = (r, g, b)

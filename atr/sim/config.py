@@ -97,30 +97,45 @@ class SimConfig:
         for name in ("width_px", "height_px", "lidar_grid", "lidar_sub_rays", "target_samples"):
             if getattr(self, name) <= 0:
                 raise ConfigError(f"{name} {getattr(self, name)} must be > 0")
-        for name in ("focal_px", "speed_mps", "baseline_to_range", "imu_rate_hz", "gravity_mps2",
-                     "exposure", "shot_noise_full_well", "lidar_max_range_m",
-                     "lidar_shot_quantum_m"):
+        for name in (
+            "focal_px",
+            "speed_mps",
+            "baseline_to_range",
+            "imu_rate_hz",
+            "gravity_mps2",
+            "exposure",
+            "shot_noise_full_well",
+            "lidar_max_range_m",
+            "lidar_shot_quantum_m",
+        ):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} {getattr(self, name)} must be > 0")
         if self.haze_visibility_m is not None and self.haze_visibility_m <= 0:
             raise ConfigError(f"haze_visibility_m {self.haze_visibility_m} must be > 0 or None")
         if len(self.dist_coeffs) not in (4, 5, 8) or not np.all(np.isfinite(self.dist_coeffs)):
-            raise ConfigError(f"dist_coeffs {self.dist_coeffs} must be 4, 5 or 8 finite numbers "
-                              "(OpenCV order k1, k2, p1, p2[, k3[, k4, k5, k6]])")
+            raise ConfigError(
+                f"dist_coeffs {self.dist_coeffs} must be 4, 5 or 8 finite numbers "
+                "(OpenCV order k1, k2, p1, p2[, k3[, k4, k5, k6]])"
+            )
         T = np.asarray(self.T_imu_cam, dtype=np.float64)
         if T.shape != (4, 4) or not np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-9):
             raise ConfigError("T_imu_cam must be a 4x4 rigid transform")
         if not 0.0 <= self.present_min_visible_fraction <= 1.0:
             raise ConfigError(
                 f"present_min_visible_fraction {self.present_min_visible_fraction} "
-                "must be in [0, 1]")
+                "must be in [0, 1]"
+            )
 
     @property
     def K(self) -> np.ndarray:
         """(3, 3) float64 pinhole intrinsics, principal point at the image centre."""
-        return np.array([[self.focal_px, 0.0, (self.width_px - 1) / 2.0],
-                         [0.0, self.focal_px, (self.height_px - 1) / 2.0],
-                         [0.0, 0.0, 1.0]])
+        return np.array(
+            [
+                [self.focal_px, 0.0, (self.width_px - 1) / 2.0],
+                [0.0, self.focal_px, (self.height_px - 1) / 2.0],
+                [0.0, 0.0, 1.0],
+            ]
+        )
 
     @property
     def T_imu_cam_matrix(self) -> np.ndarray:

@@ -35,6 +35,7 @@ class TargetTruth:
         T_world_target: (4, 4) world-from-target pose (target frame: origin on the ground, x
         forward).
         visible_fraction: share of its camera-facing surface seen in this frame (0..1).
+
     """
 
     name: str
@@ -67,6 +68,7 @@ class ImuSamples:
 
     Attributes:
         t_s: (N,) seconds since the first frame; gyro_radps (N, 3); accel_mps2 (N, 3), IMU frame.
+
     """
 
     t_s: np.ndarray
@@ -74,8 +76,9 @@ class ImuSamples:
     accel_mps2: np.ndarray
 
 
-def imu_samples(orbit: Orbit, t_s: np.ndarray, cfg: SimConfig, rng: np.random.Generator | None
-                ) -> ImuSamples:
+def imu_samples(
+    orbit: Orbit, t_s: np.ndarray, cfg: SimConfig, rng: np.random.Generator | None
+) -> ImuSamples:
     """Gyro and accelerometer readings at times t_s, from the analytic trajectory.
 
     Specific force f = R_world_imu^T (a_world - g_world), g_world = (0, 0, -g). With rng, adds the
@@ -90,19 +93,30 @@ def imu_samples(orbit: Orbit, t_s: np.ndarray, cfg: SimConfig, rng: np.random.Ge
         n = t_s.size
         dt = 1.0 / cfg.imu_rate_hz
         bg = rng.normal(0, cfg.gyro_bias_sigma_radps, 3) + np.cumsum(
-            rng.normal(0, cfg.gyro_random_walk * np.sqrt(dt), (n, 3)), axis=0)
+            rng.normal(0, cfg.gyro_random_walk * np.sqrt(dt), (n, 3)), axis=0
+        )
         ba = rng.normal(0, cfg.accel_bias_sigma_mps2, 3) + np.cumsum(
-            rng.normal(0, cfg.accel_random_walk * np.sqrt(dt), (n, 3)), axis=0)
+            rng.normal(0, cfg.accel_random_walk * np.sqrt(dt), (n, 3)), axis=0
+        )
         gyro = gyro + bg + rng.normal(0, cfg.gyro_noise_density / np.sqrt(dt), (n, 3))
         accel = accel + ba + rng.normal(0, cfg.accel_noise_density / np.sqrt(dt), (n, 3))
     return ImuSamples(np.asarray(t_s, dtype=np.float64), gyro, accel)
 
 
-def simulate_flight(scenario: Scenario, *, seed: int = 0, frames: int | None = None,
-                    target_mesh: Mesh | None = None, clutter_meshes: Sequence[Mesh] = (),
-                    lidar: bool = False, noise: str | None = None, config: SimConfig | None = None,
-                    target_name: str | None = None, imu_noise: bool = True,
-                    world: World | None = None) -> Iterator[SensorFrame]:
+def simulate_flight(
+    scenario: Scenario,
+    *,
+    seed: int = 0,
+    frames: int | None = None,
+    target_mesh: Mesh | None = None,
+    clutter_meshes: Sequence[Mesh] = (),
+    lidar: bool = False,
+    noise: str | None = None,
+    config: SimConfig | None = None,
+    target_name: str | None = None,
+    imu_noise: bool = True,
+    world: World | None = None,
+) -> Iterator[SensorFrame]:
     """Fly one scenario run and yield its frames in order.
 
     Args:
@@ -125,6 +139,7 @@ def simulate_flight(scenario: Scenario, *, seed: int = 0, frames: int | None = N
 
     Raises:
         ConfigError: frames < 1.
+
     """
     cfg = config or SimConfig()
     if frames is not None and frames < 1:
@@ -132,8 +147,14 @@ def simulate_flight(scenario: Scenario, *, seed: int = 0, frames: int | None = N
     n_frames = scenario.n_frames if frames is None else int(frames)
     spec = parse_noise(noise)
     if world is None:
-        world = build_world(scenario, seed, target_mesh=target_mesh, target_name=target_name,
-                            clutter_meshes=clutter_meshes, config=cfg)
+        world = build_world(
+            scenario,
+            seed,
+            target_mesh=target_mesh,
+            target_name=target_name,
+            clutter_meshes=clutter_meshes,
+            config=cfg,
+        )
     renderer = Renderer(world, cfg)
     orbit = world.orbit
     interval = cfg.frame_interval_s(scenario.range_m)
@@ -158,26 +179,33 @@ def simulate_flight(scenario: Scenario, *, seed: int = 0, frames: int | None = N
         lin, _ = renderer.render(T_world_cam)
         image = to_srgb8(lin)
         if spec.active:
-            image = noisy_image(lin, image, spec, cfg.shot_noise_full_well,
-                                np.random.default_rng(stream + [2, seq]))
+            image = noisy_image(
+                lin, image, spec, cfg.shot_noise_full_well, np.random.default_rng(stream + [2, seq])
+            )
         cloud = None
         if lidar:
             lrng = np.random.default_rng(stream + [3, seq])
-            cloud = renderer.lidar_scan(T_world_cam, scenario.lidar_resolution_m,
-                                        scenario.range_m, lrng)
+            cloud = renderer.lidar_scan(
+                T_world_cam, scenario.lidar_resolution_m, scenario.range_m, lrng
+            )
             if spec.active:
                 cloud = noisy_cloud(cloud, T_world_cam[:3, 3], spec, cfg.lidar_shot_quantum_m, lrng)
-        truth = [TargetTruth(world.target_name, world.T_world_target.copy(),
-                             renderer.visible_fraction(T_world_cam))]
+        truth = [
+            TargetTruth(
+                world.target_name,
+                world.T_world_target.copy(),
+                renderer.visible_fraction(T_world_cam),
+            )
+        ]
         yield SensorFrame(
             seq=seq,
             stamp_ns=STAMP0_NS + int(round(t * 1e9)),
             image=image,
             K=K.copy(),
             T_world_cam=T_world_cam,
-            imu_t_ns=STAMP0_NS + np.round(imu.t_s[k0:k1 + 1] * 1e9).astype(np.int64),
-            gyro_radps=imu.gyro_radps[k0:k1 + 1].copy(),
-            accel_mps2=imu.accel_mps2[k0:k1 + 1].copy(),
+            imu_t_ns=STAMP0_NS + np.round(imu.t_s[k0 : k1 + 1] * 1e9).astype(np.int64),
+            gyro_radps=imu.gyro_radps[k0 : k1 + 1].copy(),
+            accel_mps2=imu.accel_mps2[k0 : k1 + 1].copy(),
             T_world_imu=T_world_imu,
             v_world_imu_mps=st.v_world[0].copy(),
             lidar_points_m=cloud,

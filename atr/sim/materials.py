@@ -48,6 +48,7 @@ class Material:
         index: value stored in Mesh.material.
         name: short name.
         lidar_reflectivity: diffuse reflectance at the LIDAR wavelength (0..1), used for intensity.
+
     """
 
     index: int

@@ -24,6 +24,7 @@ class Mesh:
         vertices: (V, 3) float64, metres.
         triangles: (M, 3) int32, vertex indices, counter-clockwise seen from outside.
         material: (M,) int16, index into `atr.sim.materials.MATERIALS`.
+
     """
 
     vertices: np.ndarray
@@ -38,7 +39,8 @@ class Mesh:
             raise InputError(f"mesh has {t.shape[0]} triangles but {m.shape[0]} material entries")
         if t.size and (t.min() < 0 or t.max() >= v.shape[0]):
             raise InputError(
-                f"triangle indices must lie in [0, {v.shape[0]}), got [{t.min()}, {t.max()}]")
+                f"triangle indices must lie in [0, {v.shape[0]}), got [{t.min()}, {t.max()}]"
+            )
         if not np.all(np.isfinite(v)):
             raise InputError("mesh vertices contain NaN or infinite values")
         object.__setattr__(self, "vertices", v)
@@ -51,7 +53,7 @@ class Mesh:
         return int(self.triangles.shape[0])
 
     def transformed(self, T: np.ndarray) -> Mesh:
-        """This mesh moved by a 4x4 rigid transform T (new = T @ old)."""
+        """The mesh moved by a 4x4 rigid transform T (new = T @ old)."""
         T = np.asarray(T, dtype=np.float64)
         v = self.vertices @ T[:3, :3].T + T[:3, 3]
         return Mesh(v, self.triangles, self.material)
@@ -135,15 +137,39 @@ def place(mesh: Mesh, x: float, y: float, z: float = 0.0, yaw_rad: float = 0.0) 
 # primitives ---------------------------------------------------------------------------------------
 
 
-def box(size: Sequence[float], center: Sequence[float] = (0, 0, 0), material: int = 0,
-        bottom: bool = True) -> Mesh:
+def box(
+    size: Sequence[float],
+    center: Sequence[float] = (0, 0, 0),
+    material: int = 0,
+    bottom: bool = True,
+) -> Mesh:
     """Axis-aligned box of size (sx, sy, sz) at center; bottom=False leaves the floor open."""
     sx, sy, sz = (0.5 * float(s) for s in size)
-    v = np.array([[-sx, -sy, -sz], [sx, -sy, -sz], [sx, sy, -sz], [-sx, sy, -sz],
-                  [-sx, -sy, sz], [sx, -sy, sz], [sx, sy, sz], [-sx, sy, sz]])
+    v = np.array(
+        [
+            [-sx, -sy, -sz],
+            [sx, -sy, -sz],
+            [sx, sy, -sz],
+            [-sx, sy, -sz],
+            [-sx, -sy, sz],
+            [sx, -sy, sz],
+            [sx, sy, sz],
+            [-sx, sy, sz],
+        ]
+    )
     v = v + np.asarray(center, float)
-    t = [[4, 5, 6], [4, 6, 7],            # top
-         [0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]]
+    t = [
+        [4, 5, 6],
+        [4, 6, 7],  # top
+        [0, 1, 5],
+        [0, 5, 4],
+        [1, 2, 6],
+        [1, 6, 5],
+        [2, 3, 7],
+        [2, 7, 6],
+        [3, 0, 4],
+        [3, 4, 7],
+    ]
     if bottom:
         t += [[0, 2, 1], [0, 3, 2]]
     return Mesh(v, np.array(t), np.full(len(t), material))
@@ -172,14 +198,22 @@ def extrude_profile(profile_xz: np.ndarray, y0: float, y1: float, material: int 
     return m
 
 
-def cylinder(radius: float, length: float, segments: int = 16, material: int = 0,
-             axis: str = "z", center: Sequence[float] = (0, 0, 0), radius_end: float | None = None,
-             caps: bool = True) -> Mesh:
+def cylinder(
+    radius: float,
+    length: float,
+    segments: int = 16,
+    material: int = 0,
+    axis: str = "z",
+    center: Sequence[float] = (0, 0, 0),
+    radius_end: float | None = None,
+    caps: bool = True,
+) -> Mesh:
     """Cylinder (or frustum when radius_end is given) along axis x, y or z, centred at center."""
     r1 = float(radius) if radius_end is None else float(radius_end)
     a = np.linspace(0, 2 * np.pi, segments, endpoint=False)
-    ring0 = np.column_stack([radius * np.cos(a), radius * np.sin(a),
-                             np.full(segments, -0.5 * length)])
+    ring0 = np.column_stack(
+        [radius * np.cos(a), radius * np.sin(a), np.full(segments, -0.5 * length)]
+    )
     ring1 = np.column_stack([r1 * np.cos(a), r1 * np.sin(a), np.full(segments, 0.5 * length)])
     v = np.vstack([ring0, ring1, [[0, 0, -0.5 * length], [0, 0, 0.5 * length]]])
     tris = []
@@ -198,9 +232,15 @@ def cylinder(radius: float, length: float, segments: int = 16, material: int = 0
     return Mesh(v + np.asarray(center, float), np.array(tris), np.full(len(tris), material))
 
 
-def ellipsoid(radii: Sequence[float], center: Sequence[float] = (0, 0, 0), material: int = 0,
-              rings: int = 8, segments: int = 12, z_min_frac: float = -1.0,
-              power: float = 1.0) -> Mesh:
+def ellipsoid(
+    radii: Sequence[float],
+    center: Sequence[float] = (0, 0, 0),
+    material: int = 0,
+    rings: int = 8,
+    segments: int = 12,
+    z_min_frac: float = -1.0,
+    power: float = 1.0,
+) -> Mesh:
     """Ellipsoid (or a cap of it when z_min_frac > -1); power < 1 flattens the top into a dome."""
     rx, ry, rz = (float(r) for r in radii)
     phis = np.linspace(np.pi / 2, np.arcsin(np.clip(z_min_frac, -1, 1)), rings + 1)
@@ -225,14 +265,16 @@ def ellipsoid(radii: Sequence[float], center: Sequence[float] = (0, 0, 0), mater
 
 def octahedron(radius: float, center: Sequence[float] = (0, 0, 0), material: int = 0) -> Mesh:
     """Regular octahedron (a cheap closed blob: leaf clumps)."""
-    v = radius * np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]],
-                          float)
+    v = radius * np.array(
+        [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float
+    )
     t = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
     return Mesh(v + np.asarray(center, float), np.array(t), np.full(8, material))
 
 
-def gable_roof(length: float, width: float, height: float, center: Sequence[float],
-               material: int = 0) -> Mesh:
+def gable_roof(
+    length: float, width: float, height: float, center: Sequence[float], material: int = 0
+) -> Mesh:
     """Gable roof prism along x: base length x width at center z, ridge height above it."""
     lx, wy = 0.5 * length, 0.5 * width
     prof = np.array([[-wy, 0.0], [wy, 0.0], [0.0, height]])

@@ -36,6 +36,7 @@ class NoiseSpec:
         shot: Poisson shot noise on images and LIDAR ranges.
         gaussian_sigma_m: Gaussian sigma, metres (0: none); images use it as a fraction of full
         scale.
+
     """
 
     shot: bool = False
@@ -55,6 +56,7 @@ def parse_noise(spec: str | None) -> NoiseSpec:
 
     Raises:
         ConfigError: unknown token.
+
     """
     if spec is None:
         return NoiseSpec()
@@ -68,13 +70,19 @@ def parse_noise(spec: str | None) -> NoiseSpec:
         m = _GAUSS.match(token)
         if m is None:
             raise ConfigError(
-                f"noise spec token {token!r} must be 'shot', 'gaussian:<sigma cm>' or 'none'")
+                f"noise spec token {token!r} must be 'shot', 'gaussian:<sigma cm>' or 'none'"
+            )
         sigma = float(m.group(1)) / 100.0
     return NoiseSpec(shot, sigma)
 
 
-def noisy_image(img_linear: np.ndarray, srgb8: np.ndarray, spec: NoiseSpec, full_well: float,
-                rng: np.random.Generator) -> np.ndarray:
+def noisy_image(
+    img_linear: np.ndarray,
+    srgb8: np.ndarray,
+    spec: NoiseSpec,
+    full_well: float,
+    rng: np.random.Generator,
+) -> np.ndarray:
     """Apply image noise; returns uint8 RGB.
 
     Args:
@@ -83,6 +91,7 @@ def noisy_image(img_linear: np.ndarray, srgb8: np.ndarray, spec: NoiseSpec, full
         spec: noise to add.
         full_well: photo-electrons at full scale (shot noise strength).
         rng: generator.
+
     """
     from atr.sim.render import to_srgb8
 
@@ -96,8 +105,13 @@ def noisy_image(img_linear: np.ndarray, srgb8: np.ndarray, spec: NoiseSpec, full
     return out
 
 
-def noisy_cloud(points: np.ndarray, origin: np.ndarray, spec: NoiseSpec, quantum_m: float,
-                rng: np.random.Generator) -> np.ndarray:
+def noisy_cloud(
+    points: np.ndarray,
+    origin: np.ndarray,
+    spec: NoiseSpec,
+    quantum_m: float,
+    rng: np.random.Generator,
+) -> np.ndarray:
     """Apply LIDAR noise to (P, 3) world points seen from origin (3,); returns (P, 3) float64."""
     out = np.asarray(points, dtype=np.float64)
     if spec.shot and out.size:

@@ -32,6 +32,7 @@ class Renderer:
     Args:
         world: the built world.
         config: simulator settings (image size, intrinsics, haze, exposure, LIDAR).
+
     """
 
     def __init__(self, world: World, config: SimConfig | None = None) -> None:
@@ -43,20 +44,27 @@ class Renderer:
         self._mat_static = world.static.material
         self._mat_target = world.target.material
         self.K = self.cfg.K
-        u, v = np.meshgrid(np.arange(self.cfg.width_px, dtype=np.float64),
-                           np.arange(self.cfg.height_px, dtype=np.float64))
+        u, v = np.meshgrid(
+            np.arange(self.cfg.width_px, dtype=np.float64),
+            np.arange(self.cfg.height_px, dtype=np.float64),
+        )
         self.dist = np.asarray(self.cfg.dist_coeffs, dtype=np.float64)
         if np.any(self.dist != 0):  # each pixel's ray through the distorted lens
             pix = np.column_stack([u.ravel(), v.ravel()]).reshape(-1, 1, 2)
             crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12)
             xy = cv2.undistortPoints(pix, self.K, self.dist, None, None, None, crit).reshape(-1, 2)
         else:
-            xy = np.column_stack([(u.ravel() - self.K[0, 2]) / self.K[0, 0],
-                                  (v.ravel() - self.K[1, 2]) / self.K[1, 1]])
+            xy = np.column_stack(
+                [
+                    (u.ravel() - self.K[0, 2]) / self.K[0, 0],
+                    (v.ravel() - self.K[1, 2]) / self.K[1, 1],
+                ]
+            )
         # z = 1: t_hit is the z-depth
         self._dirs_cam = np.column_stack([xy, np.ones(u.size)])
-        self._samples = target_samples(world.target_local, world.T_world_target,
-                                       self.cfg.target_samples)
+        self._samples = target_samples(
+            world.target_local, world.T_world_target, self.cfg.target_samples
+        )
 
     # camera ---------------------------------------------------------------------------------------
 
@@ -69,17 +77,29 @@ class Renderer:
         Returns:
             image (H, W, 3) float32 linear RGB in [0, 1] after exposure (before the sRGB curve), and
             depth (H, W) float32 z-depth along the optical axis, metres (inf where the sky shows).
+
         """
         cfg = self.cfg
         T = np.asarray(T_world_cam, dtype=np.float64)
-        rays = make_rays(self._dirs_cam, np.ascontiguousarray(T[:3, :3]),
-                         np.ascontiguousarray(T[:3, 3]))
+        rays = make_rays(
+            self._dirs_cam, np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3])
+        )
         ans = self.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         t = ans["t_hit"].numpy()
         pos, nrm, mat, fp, dist, ndl, sh = surface_points(
-            rays, t, ans["primitive_ids"].numpy(), ans["geometry_ids"].numpy(),
-            ans["primitive_normals"].numpy(), self._mat_static, self._mat_target, self._target_id,
-            float(self.K[0, 0]), _GRAZING_COS_MIN, self.world.sun_dir, _SHADOW_BIAS_M)
+            rays,
+            t,
+            ans["primitive_ids"].numpy(),
+            ans["geometry_ids"].numpy(),
+            ans["primitive_normals"].numpy(),
+            self._mat_static,
+            self._mat_target,
+            self._target_id,
+            float(self.K[0, 0]),
+            _GRAZING_COS_MIN,
+            self.world.sun_dir,
+            _SHADOW_BIAS_M,
+        )
         # sun and shadows: a second ray cast towards the sun, only from surfaces facing it
         lit = np.nonzero(ndl > 0)[0]
         sh_lit = np.ascontiguousarray(sh[lit])
@@ -87,9 +107,23 @@ class Renderer:
         direct = np.zeros(t.size)
         direct[lit] = np.where(occluded, 0.0, ndl[lit])
         haze_k = 0.0 if cfg.haze_visibility_m is None else 3.912 / cfg.haze_visibility_m
-        img = compose(mat, pos, nrm, fp, dist, direct, rays, self.world.ground_rects,
-                      self.world.seed,
-                      _SUN_RGB, _SKY_RGB, _HAZE_RGB, _ZENITH_RGB, haze_k, cfg.exposure)
+        img = compose(
+            mat,
+            pos,
+            nrm,
+            fp,
+            dist,
+            direct,
+            rays,
+            self.world.ground_rects,
+            self.world.seed,
+            _SUN_RGB,
+            _SKY_RGB,
+            _HAZE_RGB,
+            _ZENITH_RGB,
+            haze_k,
+            cfg.exposure,
+        )
         depth = (t.astype(np.float32)).reshape(cfg.height_px, cfg.width_px)
         return img.reshape(cfg.height_px, cfg.width_px, 3), depth
 
@@ -115,14 +149,20 @@ class Renderer:
         pc = (pts - o) @ T[:3, :3]
         in_front = pc[:, 2] > 0.1
         uv = project(pts, self.K, T, self.dist)
-        inside = (in_front & (uv[:, 0] >= 0) & (uv[:, 0] <= self.cfg.width_px - 1)
-                  & (uv[:, 1] >= 0) & (uv[:, 1] <= self.cfg.height_px - 1))
+        inside = (
+            in_front
+            & (uv[:, 0] >= 0)
+            & (uv[:, 0] <= self.cfg.width_px - 1)
+            & (uv[:, 1] >= 0)
+            & (uv[:, 1] <= self.cfg.height_px - 1)
+        )
         return float((seen & inside).sum() / n_self)
 
     # LIDAR ----------------------------------------------------------------------------------------
 
-    def lidar_scan(self, T_world_sensor: np.ndarray, spacing_m: float, range_m: float,
-                   rng: np.random.Generator) -> np.ndarray:
+    def lidar_scan(
+        self, T_world_sensor: np.ndarray, spacing_m: float, range_m: float, rng: np.random.Generator
+    ) -> np.ndarray:
         """A LIDAR scan: a square grid of beams around the sensor's boresight (its z axis).
 
         Each beam's spot grows with range (aperture + range x divergence); its return is the mean of
@@ -139,6 +179,7 @@ class Renderer:
 
         Returns:
             (P, 3) float64 points in the world frame, metres.
+
         """
         if spacing_m <= 0 or range_m <= 0:
             raise InputError(f"LIDAR spacing {spacing_m} m and range {range_m} m must be > 0")
@@ -171,8 +212,9 @@ class Renderer:
         t0 = np.where(np.isfinite(t0), t0, range_m)
         spot_rad = cfg.lidar_aperture_m / np.maximum(t0, 1.0) + cfg.lidar_divergence_mrad * 1e-3
         half_angle = 0.5 * spot_rad
-        sub = (centre[:, None, :] + half_angle[:, None, None] * (
-            offs[None, :, 0:1] * e1[:, None, :] + offs[None, :, 1:2] * e2[:, None, :]))
+        sub = centre[:, None, :] + half_angle[:, None, None] * (
+            offs[None, :, 0:1] * e1[:, None, :] + offs[None, :, 1:2] * e2[:, None, :]
+        )
         sub /= np.linalg.norm(sub, axis=2, keepdims=True)
         srays = np.empty((n * n * k, 6), np.float32)
         srays[:, :3] = o
@@ -192,21 +234,31 @@ def to_srgb8(img_linear: np.ndarray) -> np.ndarray:
     return srgb8(a.reshape(-1, 3)).reshape(a.shape)
 
 
-def project(points_world: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray,
-            dist_coeffs: np.ndarray | None = None) -> np.ndarray:
+def project(
+    points_world: np.ndarray,
+    K: np.ndarray,
+    T_world_cam: np.ndarray,
+    dist_coeffs: np.ndarray | None = None,
+) -> np.ndarray:
     """Projection of (N, 3) world points to (N, 2) pixels (NaN behind the camera).
 
     Args:
         points_world: (N, 3) metres; K: (3, 3) intrinsics; T_world_cam: (4, 4) camera pose.
         dist_coeffs: OpenCV distortion (k1, k2, p1, p2[, k3...]); None or zeros: pinhole.
+
     """
     T = np.asarray(T_world_cam, dtype=np.float64)
     pc = (np.asarray(points_world, dtype=np.float64) - T[:3, 3]) @ T[:3, :3]
     z = np.where(pc[:, 2] > 1e-9, pc[:, 2], np.nan)
     if dist_coeffs is not None and np.any(np.asarray(dist_coeffs) != 0):
         pts = np.ascontiguousarray(pc / z[:, None])
-        uv, _ = cv2.projectPoints(np.nan_to_num(pts), np.zeros(3), np.zeros(3), K,
-                                  np.asarray(dist_coeffs, dtype=np.float64))
+        uv, _ = cv2.projectPoints(
+            np.nan_to_num(pts),
+            np.zeros(3),
+            np.zeros(3),
+            K,
+            np.asarray(dist_coeffs, dtype=np.float64),
+        )
         uv = uv.reshape(-1, 2)
         uv[~np.isfinite(z)] = np.nan
         return uv

@@ -43,6 +43,7 @@ class Scenario:
             over its runs like the scenes.
         run_obliquities_deg: obliquities of every run of the scenario (the world keeps all their
         orbits clear).
+
     """
 
     scenario: int
@@ -67,6 +68,7 @@ def scenario(number: int, run: int) -> Scenario:
 
     Raises:
         ConfigError: unknown scenario or run.
+
     """
     if number not in TABLE_II:
         raise ConfigError(f"scenario {number} must be one of {sorted(TABLE_II)}")
@@ -96,13 +98,27 @@ def all_scenarios() -> list[Scenario]:
     return [scenario(n, r) for n in sorted(TABLE_II) for r in range(1, len(TABLE_II[n][1]) + 1)]
 
 
-def custom_scenario(range_m: float, obliquity_deg: float, n_scenes: int = 20,
-                    lidar_resolution_m: float | None = None) -> Scenario:
+def custom_scenario(
+    range_m: float,
+    obliquity_deg: float,
+    n_scenes: int = 20,
+    lidar_resolution_m: float | None = None,
+) -> Scenario:
     """A single-run scenario outside Table II (scenario number 0), e.g. for tests and demos."""
     if range_m <= 0 or n_scenes <= 0 or not 0 <= obliquity_deg < 90:
         raise ConfigError(
             f"custom scenario needs range_m > 0 ({range_m}), n_scenes > 0 ({n_scenes}) and "
-            f"obliquity in [0, 90) deg ({obliquity_deg})")
+            f"obliquity in [0, 90) deg ({obliquity_deg})"
+        )
     res = lidar_resolution_m if lidar_resolution_m is not None else 0.11 * range_m / 50.0
-    return Scenario(0, 1, float(range_m), float(obliquity_deg), int(n_scenes), float(res), 0.0, 1,
-                    (float(obliquity_deg),))
+    return Scenario(
+        0,
+        1,
+        float(range_m),
+        float(obliquity_deg),
+        int(n_scenes),
+        float(res),
+        0.0,
+        1,
+        (float(obliquity_deg),),
+    )

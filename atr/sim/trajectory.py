@@ -33,6 +33,7 @@ class ImuState:
         a_world: (N, 3) acceleration, m/s^2 (kinematic, without gravity).
         R_world_imu: (N, 3, 3) attitude.
         omega_imu: (N, 3) angular rate in the IMU frame, rad/s.
+
     """
 
     p_world: np.ndarray
@@ -56,6 +57,7 @@ class Orbit:
         att_amp: (3, K) attitude disturbance amplitudes (yaw, pitch, roll), rad; att_freq,
         att_phase alike.
         att_bias: (3,) constant pointing error (yaw, pitch, roll), rad.
+
     """
 
     center: np.ndarray
@@ -79,8 +81,9 @@ class Orbit:
         c, s = np.cos(ang), np.sin(ang)
         p = np.column_stack([self.radius_m * c, self.radius_m * s, np.full_like(t, self.height_m)])
         v = np.column_stack([-self.radius_m * w * s, self.radius_m * w * c, np.zeros_like(t)])
-        a = np.column_stack([-self.radius_m * w * w * c, -self.radius_m * w * w * s,
-                             np.zeros_like(t)])
+        a = np.column_stack(
+            [-self.radius_m * w * w * c, -self.radius_m * w * w * s, np.zeros_like(t)]
+        )
         dp, dv, da = _waves(t, self.pos_amp, self.pos_freq, self.pos_phase)
         p = p + dp + self.center
         v = v + dv
@@ -106,11 +109,13 @@ class Orbit:
         # body rates of the ZYX Euler sequence
         sr, cr = np.sin(roll), np.cos(roll)
         sp, cp = np.sin(pitch), np.cos(pitch)
-        omega = np.column_stack([
-            roll_d - yaw_d * sp,
-            pitch_d * cr + yaw_d * cp * sr,
-            -pitch_d * sr + yaw_d * cp * cr,
-        ])
+        omega = np.column_stack(
+            [
+                roll_d - yaw_d * sp,
+                pitch_d * cr + yaw_d * cp * sr,
+                -pitch_d * sr + yaw_d * cp * cr,
+            ]
+        )
         return ImuState(p, v, a, R, omega)
 
     def T_world_imu(self, t_s: float) -> np.ndarray:
@@ -140,8 +145,9 @@ def euler_zyx(yaw: np.ndarray, pitch: np.ndarray, roll: np.ndarray) -> np.ndarra
     return R
 
 
-def _waves(t: np.ndarray, amp: np.ndarray, freq: np.ndarray, phase: np.ndarray
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _waves(
+    t: np.ndarray, amp: np.ndarray, freq: np.ndarray, phase: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Sum of sinusoids per axis and its first two derivatives: (N, 3) each."""
     w = 2 * np.pi * freq  # (3, K)
     arg = t[:, None, None] * w[None] + phase[None]  # (N, 3, K)
@@ -151,8 +157,13 @@ def _waves(t: np.ndarray, amp: np.ndarray, freq: np.ndarray, phase: np.ndarray
     return x, xd, xdd
 
 
-def make_orbit(sc: Scenario, target_xyz: np.ndarray, rng: np.random.Generator,
-               config: SimConfig, aim_height_m: float = 1.1) -> Orbit:
+def make_orbit(
+    sc: Scenario,
+    target_xyz: np.ndarray,
+    rng: np.random.Generator,
+    config: SimConfig,
+    aim_height_m: float = 1.1,
+) -> Orbit:
     """The orbit of one run: range and obliquity from the scenario, disturbances drawn from rng.
 
     The orbit centre (the gimbal's aim point) is the target's centre offset by a small random
@@ -163,14 +174,16 @@ def make_orbit(sc: Scenario, target_xyz: np.ndarray, rng: np.random.Generator,
     """
     ob = np.deg2rad(sc.obliquity_deg)
     offset = rng.normal(0.0, config.aim_offset_frac * sc.range_m, 2)
-    center = np.array([target_xyz[0] + offset[0], target_xyz[1] + offset[1],
-                       target_xyz[2] + aim_height_m])
+    center = np.array(
+        [target_xyz[0] + offset[0], target_xyz[1] + offset[1], target_xyz[2] + aim_height_m]
+    )
     height = max(sc.range_m * np.sin(ob), config.min_altitude_m - aim_height_m)
     radius = np.sqrt(max(sc.range_m**2 - height**2, 1.0))
     direction = 1.0 if rng.random() < 0.5 else -1.0
     rate = direction * config.speed_mps / radius
-    pos_amp = rng.uniform(0.3, 1.0, (3,
-                                     _N_WAVES)) * config.position_disturbance_m / np.sqrt(_N_WAVES)
+    pos_amp = (
+        rng.uniform(0.3, 1.0, (3, _N_WAVES)) * config.position_disturbance_m / np.sqrt(_N_WAVES)
+    )
     pos_freq = rng.uniform(0.05, 0.4, (3, _N_WAVES))
     pos_phase = rng.uniform(0, 2 * np.pi, (3, _N_WAVES))
     jit = np.deg2rad(config.pointing_jitter_deg)
@@ -183,5 +196,17 @@ def make_orbit(sc: Scenario, target_xyz: np.ndarray, rng: np.random.Generator,
     att_bias = rng.normal(0.0, np.deg2rad(config.pointing_bias_deg), 3)
     att_bias[2] = 0.0
     phase0 = float(rng.uniform(0, 2 * np.pi))
-    return Orbit(center, float(radius), float(height), float(rate), phase0,
-                 pos_amp, pos_freq, pos_phase, att_amp, att_freq, att_phase, att_bias)
+    return Orbit(
+        center,
+        float(radius),
+        float(height),
+        float(rate),
+        phase0,
+        pos_amp,
+        pos_freq,
+        pos_phase,
+        att_amp,
+        att_freq,
+        att_phase,
+        att_bias,
+    )

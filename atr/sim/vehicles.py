@@ -41,8 +41,16 @@ def _circle(cx: float, cz: float, r: float, n: int = 12) -> np.ndarray:
     return np.column_stack([cx + r * np.cos(a), cz + r * np.sin(a)])
 
 
-def _wheel(x: float, y: float, z: float, r: float, width: float, hub_mat: int, tyre_mat: int,
-           segments: int = 16) -> Mesh:
+def _wheel(
+    x: float,
+    y: float,
+    z: float,
+    r: float,
+    width: float,
+    hub_mat: int,
+    tyre_mat: int,
+    segments: int = 16,
+) -> Mesh:
     """A wheel along y: tyre cylinder plus a slightly proud hub disc on the outer side."""
     side = np.sign(y) if y != 0 else 1.0
     tyre = cylinder(r, width, segments, tyre_mat, axis="y", center=(x, y, z))
@@ -66,11 +74,13 @@ def t72() -> Mesh:
 
     Returns:
         Mesh in the vehicle frame (origin on the ground under the hull centre, x forward), metres.
+
     """
     parts: list[Mesh] = []
     # hull between the tracks: lower hull, upper glacis at 68 deg from vertical, flat roof at 1.45 m
-    hull_prof = np.array([[-3.30, 0.47], [3.00, 0.47], [3.43, 0.95], [2.15, 1.45], [-3.43, 1.45],
-                          [-3.43, 0.95]])
+    hull_prof = np.array(
+        [[-3.30, 0.47], [3.00, 0.47], [3.43, 0.95], [2.15, 1.45], [-3.43, 1.45], [-3.43, 0.95]]
+    )
     parts.append(extrude_profile(hull_prof, -1.12, 1.12, M.CAMO))
     # sponsons above the tracks, out to the fenders
     spon_prof = np.array([[-3.43, 0.95], [3.43, 0.95], [2.15, 1.45], [-3.43, 1.45]])
@@ -100,12 +110,24 @@ def t72() -> Mesh:
     parts.append(box((0.8, 1.0, 0.04), (-1.45, 0.0, 1.47), M.CAMO))
     parts.append(box((0.45, 0.55, 0.1), (2.0, 0.0, 1.48), M.CAMO))
     # domed cast turret, slightly forward of the hull centre
-    parts.append(ellipsoid((1.55, 1.45, 0.76), (0.30, 0.0, 1.44), M.CAMO, rings=8, segments=28,
-                           z_min_frac=0.0, power=0.55))
+    parts.append(
+        ellipsoid(
+            (1.55, 1.45, 0.76),
+            (0.30, 0.0, 1.44),
+            M.CAMO,
+            rings=8,
+            segments=28,
+            z_min_frac=0.0,
+            power=0.55,
+        )
+    )
     # commander's cupola (right), gunner's hatch (left), AA machine gun, IR searchlight, snorkel
     parts.append(cylinder(0.36, 0.16, 16, M.CAMO, center=(-0.15, -0.48, 2.16)))
-    parts.append(ellipsoid((0.33, 0.33, 0.10), (-0.15, -0.48, 2.24), M.CAMO, rings=3, segments=16,
-                           z_min_frac=0.0))
+    parts.append(
+        ellipsoid(
+            (0.33, 0.33, 0.10), (-0.15, -0.48, 2.24), M.CAMO, rings=3, segments=16, z_min_frac=0.0
+        )
+    )
     parts.append(cylinder(0.30, 0.08, 14, M.CAMO, center=(-0.05, 0.50, 2.14)))
     parts.append(cylinder(0.025, 1.2, 6, M.METAL, axis="x", center=(0.25, -0.48, 2.42)))
     parts.append(box((0.2, 0.06, 0.18), (-0.25, -0.48, 2.33), M.METAL))
@@ -114,8 +136,9 @@ def t72() -> Mesh:
     parts.append(cylinder(0.09, 1.6, 10, M.CAMO, axis="y", center=(-1.30, 0.1, 1.88)))
     # 125 mm gun: mantlet, barrel with thermal sleeve and fume extractor, muzzle 2.5 m past the hull
     # front
-    parts.append(cylinder(0.30, 0.55, 16, M.CAMO, axis="x", center=(1.70, 0.0, 1.80),
-                          radius_end=0.20))
+    parts.append(
+        cylinder(0.30, 0.55, 16, M.CAMO, axis="x", center=(1.70, 0.0, 1.80), radius_end=0.20)
+    )
     parts.append(cylinder(0.105, 2.6, 12, M.METAL, axis="x", center=(3.25, 0.0, 1.80)))
     parts.append(cylinder(0.15, 0.55, 12, M.METAL, axis="x", center=(4.05, 0.0, 1.80)))
     parts.append(cylinder(0.085, 1.45, 12, M.METAL, axis="x", center=(5.20, 0.0, 1.80)))
@@ -131,8 +154,11 @@ def ifv(paint: int = M.OLIVE) -> Mesh:
     parts: list[Mesh] = []
     prof = np.array([[-3.36, 0.42], [2.75, 0.42], [3.36, 0.80], [1.35, 1.78], [-3.36, 1.78]])
     parts.append(extrude_profile(prof, -1.02, 1.02, paint))
-    side: list[Mesh] = [extrude_profile(np.array([[-3.36, 0.80], [3.30, 0.80], [1.35, 1.78],
-                                                  [-3.36, 1.78]]), 1.02, 1.50, paint)]
+    side: list[Mesh] = [
+        extrude_profile(
+            np.array([[-3.36, 0.80], [3.30, 0.80], [1.35, 1.78], [-3.36, 1.78]]), 1.02, 1.50, paint
+        )
+    ]
     side.append(box((5.2, 0.48, 0.07), (-0.1, 1.26, 0.035), M.METAL))
     side.append(box((5.6, 0.48, 0.06), (-0.1, 1.26, 0.72), M.METAL))
     for x in (-2.3, -1.45, -0.6, 0.25, 1.1, 1.95):
@@ -163,8 +189,9 @@ def truck_6x6(paint: int = M.OLIVE) -> Mesh:
     parts.append(box((4.7, 2.5, 0.12), (-1.3, 0.0, 1.36), paint))  # bed floor
     for y in (-1.22, 1.22):
         parts.append(box((4.7, 0.06, 0.45), (-1.3, y, 1.64), paint))
-    cover = np.array([[-3.65, 1.8], [1.0, 1.8], [1.0, 2.6], [0.8, 2.88], [-3.45, 2.88],
-                      [-3.65, 2.6]])
+    cover = np.array(
+        [[-3.65, 1.8], [1.0, 1.8], [1.0, 2.6], [0.8, 2.88], [-3.45, 2.88], [-3.65, 2.6]]
+    )
     parts.append(extrude_profile(cover, -1.2, 1.2, M.CANVAS))
     for x in (2.95, -0.85, -2.35):
         for y in (-1.0, 1.0):
@@ -178,9 +205,17 @@ def truck_6x6(paint: int = M.OLIVE) -> Mesh:
 def car(paint: int = M.PAINT_SILVER) -> Mesh:
     """A family sedan, 4.5 x 1.8 x 1.45 m, in the given paint material."""
     parts: list[Mesh] = []
-    body = np.array([[-2.25, 0.30], [2.1, 0.30], [2.25, 0.55], [2.2, 0.75], [1.15, 0.92],
-                     [-2.2, 0.98],
-                     [-2.28, 0.6]])
+    body = np.array(
+        [
+            [-2.25, 0.30],
+            [2.1, 0.30],
+            [2.25, 0.55],
+            [2.2, 0.75],
+            [1.15, 0.92],
+            [-2.2, 0.98],
+            [-2.28, 0.6],
+        ]
+    )
     parts.append(extrude_profile(_convex_hull_2d(body), -0.88, 0.88, paint))
     cabin = np.array([[1.15, 0.92], [0.35, 1.42], [-1.05, 1.42], [-1.9, 0.97]])
     parts.append(extrude_profile(cabin, -0.76, 0.76, M.GLASS))

@@ -22,8 +22,12 @@ def raycasting_scene(meshes: list[Mesh]) -> tuple[o3d.t.geometry.RaycastingScene
     scene = o3d.t.geometry.RaycastingScene()
     ids = []
     for m in meshes:
-        ids.append(scene.add_triangles(o3d.core.Tensor(m.vertices.astype(np.float32)),
-                                       o3d.core.Tensor(m.triangles.astype(np.uint32))))
+        ids.append(
+            scene.add_triangles(
+                o3d.core.Tensor(m.vertices.astype(np.float32)),
+                o3d.core.Tensor(m.triangles.astype(np.uint32)),
+            )
+        )
     return scene, ids
 
 
@@ -33,8 +37,9 @@ def target_samples(target_local: Mesh, T_world_target: np.ndarray, n: int) -> np
     return pts @ T_world_target[:3, :3].T + T_world_target[:3, 3]
 
 
-def first_hit_reaches(scene: o3d.t.geometry.RaycastingScene, origins: np.ndarray, points: np.ndarray
-                      ) -> np.ndarray:
+def first_hit_reaches(
+    scene: o3d.t.geometry.RaycastingScene, origins: np.ndarray, points: np.ndarray
+) -> np.ndarray:
     """Whether the first surface along each ray origin -> point is the point itself.
 
     Args:
@@ -42,6 +47,7 @@ def first_hit_reaches(scene: o3d.t.geometry.RaycastingScene, origins: np.ndarray
 
     Returns:
         (F, S) bool.
+
     """
     F = origins.shape[0]
     pts = np.broadcast_to(points, (F,) + points.shape[-2:])
@@ -55,8 +61,13 @@ def first_hit_reaches(scene: o3d.t.geometry.RaycastingScene, origins: np.ndarray
 
 
 def target_visibility_rays(
-    static: Mesh, target_world: Mesh, target_local: Mesh, T_world_target: np.ndarray,
-    cams: np.ndarray, cfg: SimConfig, n_samples: int | None = None,
+    static: Mesh,
+    target_world: Mesh,
+    target_local: Mesh,
+    T_world_target: np.ndarray,
+    cams: np.ndarray,
+    cfg: SimConfig,
+    n_samples: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Visibility of the target samples from camera centres, ignoring the image frame.
 
@@ -67,6 +78,7 @@ def target_visibility_rays(
         sample points (S, 3); seen (F, S) bool: seen in the full scene; self_vis (F, S) bool: seen
         with
         the target alone. The visible fraction of frame f is seen[f].sum() / self_vis[f].sum().
+
     """
     pts = target_samples(target_local, T_world_target, n_samples or cfg.target_samples)
     full, _ = raycasting_scene([static, target_world])

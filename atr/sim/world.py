@@ -53,6 +53,7 @@ class World:
         sun_dir: (3,) unit vector from the ground towards the sun.
         orbit: the run's camera-head trajectory.
         occluder_width_m: width of the tuned occluder building (0 when the run needs none).
+
     """
 
     seed: int
@@ -70,14 +71,16 @@ class World:
 # terrain ------------------------------------------------------------------------------------------
 
 
-def terrain_height(x: np.ndarray, y: np.ndarray, waves: np.ndarray,
-                   center: np.ndarray) -> np.ndarray:
+def terrain_height(
+    x: np.ndarray, y: np.ndarray, waves: np.ndarray, center: np.ndarray
+) -> np.ndarray:
     """Gentle terrain height, metres: sum of plane waves, flattened to 0 around the target.
 
     Args:
         x, y: world coordinates, metres (any matching shapes).
         waves: (K, 4) amplitude m, wavelength m, direction rad, phase rad.
         center: (2,) target position; the terrain is flat (z = 0) within ~15 m of it.
+
     """
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
@@ -104,10 +107,21 @@ def _terrain_mesh(waves: np.ndarray, center: np.ndarray) -> Mesh:
     # flat outer ground up to the horizon, a ring of four trapezoids around the detailed square
     H, h = _HORIZON_HALF_M, _TERRAIN_HALF_M
     z0 = -0.3
-    ov = np.array([[-H, -H, z0], [H, -H, z0], [H, H, z0], [-H, H, z0],
-                   [-h, -h, z0], [h, -h, z0], [h, h, z0], [-h, h, z0]])
-    ot = np.array([[0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5],
-                   [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    ov = np.array(
+        [
+            [-H, -H, z0],
+            [H, -H, z0],
+            [H, H, z0],
+            [-H, H, z0],
+            [-h, -h, z0],
+            [h, -h, z0],
+            [h, h, z0],
+            [-h, h, z0],
+        ]
+    )
+    ot = np.array(
+        [[0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]]
+    )
     outer = Mesh(ov, ot, np.full(len(ot), M.GRASS))
     return merge([inner, outer])
 
@@ -115,27 +129,38 @@ def _terrain_mesh(waves: np.ndarray, center: np.ndarray) -> Mesh:
 # objects ------------------------------------------------------------------------------------------
 
 
-def building(footprint: tuple[float, float], height_m: float, rng: np.random.Generator,
-             wall_material: int = M.FACADE) -> Mesh:
+def building(
+    footprint: tuple[float, float],
+    height_m: float,
+    rng: np.random.Generator,
+    wall_material: int = M.FACADE,
+) -> Mesh:
     """A building centred at the origin (1 m of basement below z = 0), with roof details."""
     lx, ly = footprint
-    parts = [box((lx, ly, height_m + 1.0), (0, 0, 0.5 * (height_m - 1.0)), wall_material,
-                 bottom=False)]
+    parts = [
+        box((lx, ly, height_m + 1.0), (0, 0, 0.5 * (height_m - 1.0)), wall_material, bottom=False)
+    ]
     if height_m < 11.0 and rng.random() < 0.5:
         ridge = min(lx, ly) * rng.uniform(0.25, 0.4)
         roof = gable_roof(lx + 0.6, ly + 0.6, ridge, (0, 0, height_m), M.ROOF_TILE)
         if ly > lx:  # ridge along the long side
             roof = gable_roof(ly + 0.6, lx + 0.6, ridge, (0, 0, height_m), M.ROOF_TILE).transformed(
-                pose(rot_z(np.pi / 2)))
+                pose(rot_z(np.pi / 2))
+            )
         parts.append(roof)
-        parts.append(box((0.6, 0.6, ridge + 1.2), (0.25 * lx, 0.1 * ly, height_m + 0.5 * ridge),
-                         M.BRICK))
+        parts.append(
+            box((0.6, 0.6, ridge + 1.2), (0.25 * lx, 0.1 * ly, height_m + 0.5 * ridge), M.BRICK)
+        )
         return merge(parts)
     parts.append(box((lx - 0.4, ly - 0.4, 0.05), (0, 0, height_m + 0.02), M.ROOF))
     # parapet
     pw, ph = 0.25, rng.uniform(0.5, 1.1)
-    for sx, sy, cx, cy in ((lx, pw, 0, 0.5 * (ly - pw)), (lx, pw, 0, -0.5 * (ly - pw)),
-                           (pw, ly, 0.5 * (lx - pw), 0), (pw, ly, -0.5 * (lx - pw), 0)):
+    for sx, sy, cx, cy in (
+        (lx, pw, 0, 0.5 * (ly - pw)),
+        (lx, pw, 0, -0.5 * (ly - pw)),
+        (pw, ly, 0.5 * (lx - pw), 0),
+        (pw, ly, -0.5 * (lx - pw), 0),
+    ):
         parts.append(box((sx, sy, ph), (cx, cy, height_m + 0.5 * ph), M.CONCRETE, bottom=False))
     # roof details: stair housing, air-conditioning units, water tank
     if min(lx, ly) > 8.0:
@@ -152,8 +177,9 @@ def building(footprint: tuple[float, float], height_m: float, rng: np.random.Gen
         cx, cy = rng.uniform(-0.3, 0.3) * lx, rng.uniform(-0.3, 0.3) * ly
         parts.append(cylinder(r, 2.0, 14, M.METAL, center=(cx, cy, height_m + 2.2)))
         for dx, dy in ((-0.6, -0.6), (0.6, -0.6), (0.6, 0.6), (-0.6, 0.6)):
-            parts.append(box((0.12, 0.12, 1.2), (cx + dx * r, cy + dy * r, height_m + 0.6),
-                             M.METAL))
+            parts.append(
+                box((0.12, 0.12, 1.2), (cx + dx * r, cy + dy * r, height_m + 0.6), M.METAL)
+            )
     return merge(parts)
 
 
@@ -166,8 +192,16 @@ def tree(rng: np.random.Generator, height_m: float) -> Mesh:
     crown_r = height_m * rng.uniform(0.22, 0.32)
     crown_z = height_m - crown_r * rng.uniform(0.9, 1.1)
     trunk_r = 0.06 + 0.02 * height_m
-    parts = [cylinder(trunk_r, crown_z + 1.0, 8, M.BARK, center=(0, 0, 0.5 * (crown_z - 1.0)),
-                      radius_end=0.7 * trunk_r)]
+    parts = [
+        cylinder(
+            trunk_r,
+            crown_z + 1.0,
+            8,
+            M.BARK,
+            center=(0, 0, 0.5 * (crown_z - 1.0)),
+            radius_end=0.7 * trunk_r,
+        )
+    ]
     for _ in range(4):
         az, el = rng.uniform(0, 2 * np.pi), rng.uniform(0.4, 1.0)
         length = crown_r * rng.uniform(0.6, 0.9)
@@ -182,12 +216,14 @@ def tree(rng: np.random.Generator, height_m: float) -> Mesh:
     rad = crown_r * rng.random(n_clumps) ** 0.4
     centers = u * rad[:, None] * np.array([1.0, 1.0, 0.8]) + np.array([0, 0, crown_z])
     sizes = rng.uniform(0.15, 0.35, n_clumps) * (0.8 + 0.07 * crown_r)
-    scale = sizes[:, None] * np.column_stack([np.ones(n_clumps), rng.uniform(0.6, 1.0, n_clumps),
-                                              rng.uniform(0.4, 0.8, n_clumps)])
+    scale = sizes[:, None] * np.column_stack(
+        [np.ones(n_clumps), rng.uniform(0.6, 1.0, n_clumps), rng.uniform(0.4, 0.8, n_clumps)]
+    )
     R = _random_rotations(rng, n_clumps)
     # leaf clumps are small tetrahedra: 4 triangles each, sharp-edged like leaf clusters from afar
-    tet_v = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0],
-                      [-1.0, -1.0, 1.0]]) / np.sqrt(3)
+    tet_v = np.array(
+        [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]]
+    ) / np.sqrt(3)
     tet_t = np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]])
     v = np.einsum("nij,kj->nki", R * scale[:, None, :], tet_v) + centers[:, None, :]
     t = tet_t[None] + 4 * np.arange(n_clumps)[:, None, None]
@@ -207,11 +243,14 @@ def _random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
     q = rng.normal(size=(n, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1),
-    ], axis=1)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1),
+        ],
+        axis=1,
+    )
 
 
 # layout -------------------------------------------------------------------------------------------
@@ -252,9 +291,15 @@ class _Keepout:
         return h <= _TARGET_TOP_M + near * self.tan_el
 
 
-def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
-                target_name: str | None = None, clutter_meshes: Sequence[Mesh] = (),
-                config: SimConfig | None = None) -> World:
+def build_world(
+    sc: Scenario,
+    seed: int,
+    *,
+    target_mesh: Mesh | None = None,
+    target_name: str | None = None,
+    clutter_meshes: Sequence[Mesh] = (),
+    config: SimConfig | None = None,
+) -> World:
     """Build the world of one scenario run.
 
     Args:
@@ -267,6 +312,7 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
 
     Returns:
         The world, including the run's orbit.
+
     """
     cfg = config or SimConfig()
     rng = np.random.default_rng([seed, 0x5EED])
@@ -291,12 +337,19 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
     else:
         heading = rng.uniform(0, 2 * np.pi)
     target_xy = to_world @ t_uv
-    waves = np.column_stack([rng.uniform(0.15, 0.5, 6), rng.uniform(40, 220, 6),
-                             rng.uniform(0, np.pi, 6), rng.uniform(0, 2 * np.pi, 6)])
+    waves = np.column_stack(
+        [
+            rng.uniform(0.15, 0.5, 6),
+            rng.uniform(40, 220, 6),
+            rng.uniform(0, np.pi, 6),
+            rng.uniform(0, 2 * np.pi, 6),
+        ]
+    )
     sun_el = np.deg2rad(rng.uniform(*cfg.sun_elevation_deg))
     sun_az = rng.uniform(0, 2 * np.pi)
-    sun_dir = np.array([np.cos(sun_el) * np.cos(sun_az), np.cos(sun_el) * np.sin(sun_az),
-                        np.sin(sun_el)])
+    sun_dir = np.array(
+        [np.cos(sun_el) * np.cos(sun_az), np.cos(sun_el) * np.sin(sun_az), np.sin(sun_el)]
+    )
 
     def ground(x, y):
         return terrain_height(x, y, waves, target_xy)
@@ -307,8 +360,12 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
     target_world = tmesh.transformed(T_world_target)
 
     # --- the run's orbit (seed, scenario, run) ----------------------------------------------------
-    orbit = make_orbit(sc, np.array([target_xy[0], target_xy[1], 0.0]),
-                       np.random.default_rng([seed, sc.scenario, sc.run, 0x0B17]), cfg)
+    orbit = make_orbit(
+        sc,
+        np.array([target_xy[0], target_xy[1], 0.0]),
+        np.random.default_rng([seed, sc.scenario, sc.run, 0x0B17]),
+        cfg,
+    )
     keep = _Keepout(target_xy, orbit, 1.1)
 
     # --- ground map: streets with sidewalks, a square around the target ---------------------------
@@ -323,14 +380,44 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
             xy = to_world @ uv
             ang = grid_ang if axis == 0 else grid_ang + np.pi / 2
             half_w = 0.5 * widths[1 - axis] if axis == 0 else 0.5 * widths[0]
-            rects.append([xy[0], xy[1], _TERRAIN_HALF_M * 1.5, half_w + _SIDEWALK_M, np.cos(ang),
-                          np.sin(ang), M.CONCRETE, 0])
-            rects.append([xy[0], xy[1], _TERRAIN_HALF_M * 1.5, half_w, np.cos(ang), np.sin(ang),
-                          M.ASPHALT, 1])
+            rects.append(
+                [
+                    xy[0],
+                    xy[1],
+                    _TERRAIN_HALF_M * 1.5,
+                    half_w + _SIDEWALK_M,
+                    np.cos(ang),
+                    np.sin(ang),
+                    M.CONCRETE,
+                    0,
+                ]
+            )
+            rects.append(
+                [
+                    xy[0],
+                    xy[1],
+                    _TERRAIN_HALF_M * 1.5,
+                    half_w,
+                    np.cos(ang),
+                    np.sin(ang),
+                    M.ASPHALT,
+                    1,
+                ]
+            )
     if not on_street:
         sq = rng.uniform(10, 16)
-        rects.append([target_xy[0], target_xy[1], sq, sq * rng.uniform(0.7, 1.0), np.cos(heading),
-                      np.sin(heading), M.CONCRETE if rng.random() < 0.5 else M.DIRT, 0])
+        rects.append(
+            [
+                target_xy[0],
+                target_xy[1],
+                sq,
+                sq * rng.uniform(0.7, 1.0),
+                np.cos(heading),
+                np.sin(heading),
+                M.CONCRETE if rng.random() < 0.5 else M.DIRT,
+                0,
+            ]
+        )
     ground_rects = np.array(rects, dtype=np.float64)
 
     def street_dist(x, y):
@@ -432,8 +519,10 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
         if free(x, y, 2.3) and keep.flyable(x, y, 2.3, 1.5):
             add(car(M.CAR_PAINTS[int(rng.integers(len(M.CAR_PAINTS)))]), x, y, yaw, 2.3, 1.5, "car")
     # --- confusers: an IFV, a 6x6 truck and any user meshes, on open ground near the target -------
-    confusers: list[Mesh] = [ifv(M.OLIVE if rng.random() < 0.7 else M.SAND),
-                             truck_6x6(M.OLIVE if rng.random() < 0.7 else M.SAND)]
+    confusers: list[Mesh] = [
+        ifv(M.OLIVE if rng.random() < 0.7 else M.SAND),
+        truck_6x6(M.OLIVE if rng.random() < 0.7 else M.SAND),
+    ]
     confusers += list(clutter_meshes)
     for mesh in confusers:
         lo, hi = mesh.bounds()
@@ -443,8 +532,16 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
             a = rng.uniform(0, 2 * np.pi)
             x, y = target_xy + d * np.array([np.cos(a), np.sin(a)])
             if free(x, y, r) and keep.flyable(x, y, r, float(hi[2])):
-                add(mesh, x, y, rng.uniform(0, 2 * np.pi), r, float(hi[2] - lo[2]), "confuser",
-                    sink=float(lo[2]))
+                add(
+                    mesh,
+                    x,
+                    y,
+                    rng.uniform(0, 2 * np.pi),
+                    r,
+                    float(hi[2] - lo[2]),
+                    "confuser",
+                    sink=float(lo[2]),
+                )
                 break
 
     terrain = _terrain_mesh(waves, target_xy)
@@ -452,14 +549,30 @@ def build_world(sc: Scenario, seed: int, *, target_mesh: Mesh | None = None,
     occ = None
     if sc.absent_scenes > 0:
         occ, occluder_width, inside = _tuned_occluder(
-            sc, cfg, orbit, target_world, tmesh, T_world_target,
-            merge([terrain] + [it.mesh for it in items]), rng)
+            sc,
+            cfg,
+            orbit,
+            target_world,
+            tmesh,
+            T_world_target,
+            merge([terrain] + [it.mesh for it in items]),
+            rng,
+        )
         # nothing may stand inside the occluder building
         items = [it for it in items if not inside(it.x, it.y, it.radius)]
     static_parts = [terrain] + [it.mesh for it in items] + ([occ] if occ is not None else [])
-    return World(seed=seed, static=merge(static_parts), target=target_world, target_name=name,
-                 T_world_target=T_world_target, target_local=tmesh, ground_rects=ground_rects,
-                 sun_dir=sun_dir, orbit=orbit, occluder_width_m=occluder_width)
+    return World(
+        seed=seed,
+        static=merge(static_parts),
+        target=target_world,
+        target_name=name,
+        T_world_target=T_world_target,
+        target_local=tmesh,
+        ground_rects=ground_rects,
+        sun_dir=sun_dir,
+        orbit=orbit,
+        occluder_width_m=occluder_width,
+    )
 
 
 def frame_times_s(sc: Scenario, cfg: SimConfig) -> np.ndarray:
@@ -467,9 +580,16 @@ def frame_times_s(sc: Scenario, cfg: SimConfig) -> np.ndarray:
     return np.arange(sc.n_frames) * cfg.frame_interval_s(sc.range_m)
 
 
-def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Mesh,
-                    target_local: Mesh, T_world_target: np.ndarray, static: Mesh,
-                    rng: np.random.Generator) -> tuple[Mesh | None, float, Callable]:
+def _tuned_occluder(
+    sc: Scenario,
+    cfg: SimConfig,
+    orbit: Orbit,
+    target_world: Mesh,
+    target_local: Mesh,
+    T_world_target: np.ndarray,
+    static: Mesh,
+    rng: np.random.Generator,
+) -> tuple[Mesh | None, float, Callable]:
     """A tall building beside the target, widened until the run's share of scenes without a visible
     target reaches the scenario's absent ratio (bisection on the width; ray-box tests, no
     re-meshing).
@@ -477,14 +597,16 @@ def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Me
     Returns:
         the building (None when clutter alone already hides the target often enough), its width in
         metres, and a test inside(x, y, r) telling whether a disc overlaps its footprint.
+
     """
     # late import: visibility needs a built scene
     from atr.sim.visibility import target_visibility_rays
 
     times = frame_times_s(sc, cfg)
     cams = np.array([(orbit.T_world_imu(t) @ cfg.T_imu_cam_matrix)[:3, 3] for t in times])
-    pts, seen, self_vis = target_visibility_rays(static, target_world, target_local, T_world_target,
-                                                 cams, cfg)
+    pts, seen, self_vis = target_visibility_rays(
+        static, target_world, target_local, T_world_target, cams, cfg
+    )
     n_self = np.maximum(self_vis.sum(axis=1), 1)
     ends = np.broadcast_to(pts, (cams.shape[0],) + pts.shape)
     txy = T_world_target[:2, 3]
@@ -534,8 +656,15 @@ def _tuned_occluder(sc: Scenario, cfg: SimConfig, orbit: Orbit, target_world: Me
     return occ, float(width), inside
 
 
-def _rays_hit_box(origins: np.ndarray, ends: np.ndarray, center_xy: np.ndarray, yaw: float,
-                  depth: float, width: float, height: float) -> np.ndarray:
+def _rays_hit_box(
+    origins: np.ndarray,
+    ends: np.ndarray,
+    center_xy: np.ndarray,
+    yaw: float,
+    depth: float,
+    width: float,
+    height: float,
+) -> np.ndarray:
     """Whether segments origins (F, 3) -> ends (F, S, 3) pass through an upright box (slab test)."""
     c, s = np.cos(yaw), np.sin(yaw)
     R = np.array([[c, s], [-s, c]])  # world -> box frame (rotation by -yaw)

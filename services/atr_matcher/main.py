@@ -9,6 +9,7 @@ a replay gives byte-identical detections. Templates come from template_store ove
 Example:
     atr service atr_matcher --uav uav1 --set recognition.descriptor=fpfh
     atr service atr_matcher --set pipeline.cloud_source=lidar
+
 """
 
 from __future__ import annotations
@@ -22,11 +23,15 @@ from bus.service import effective_config, service_arguments, start_node
 
 def template_from_message(message: dict) -> Template:
     """The Template a Template message describes (what template_store serves), as the matcher uses it."""
-    return Template.from_dict(message | {"params": message.get("params", {}) | {"resolution_m": message["resolution_m"]}})
+    return Template.from_dict(
+        message | {"params": message.get("params", {}) | {"resolution_m": message["resolution_m"]}}
+    )
 
 
 def _detection(detection: object) -> dict:
-    return detection.to_dict() | {"T_world_target": np.asarray(detection.T_world_target, np.float64)}
+    return detection.to_dict() | {
+        "T_world_target": np.asarray(detection.T_world_target, np.float64)
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,25 +39,46 @@ def main(argv: list[str] | None = None) -> int:
     args = service_arguments("atr_matcher", __doc__).parse_args(argv)
     config = effective_config(args)
     pipeline, recognition = config.pipeline, config.recognition
-    source_key = keys.sfm_cloud(args.uav) if pipeline.cloud_source == "sfm" else keys.lidar(args.uav)
-    targets = list(pipeline.targets) + [p.rsplit("/", 1)[-1].rsplit(".", 1)[0] for p in pipeline.target_meshes]
+    source_key = (
+        keys.sfm_cloud(args.uav) if pipeline.cloud_source == "sfm" else keys.lidar(args.uav)
+    )
+    targets = list(pipeline.targets) + [
+        p.rsplit("/", 1)[-1].rsplit(".", 1)[0] for p in pipeline.target_meshes
+    ]
     templates: list[Template] = []
     with start_node("atr_matcher", args, inputs=[source_key]) as node:
         node.ready()
         for message in node.events():
             with node.handling(message):
-                if not templates:  # a failed fetch is reported for this cloud and retried on the next
+                if (
+                    not templates
+                ):  # a failed fetch is reported for this cloud and retried on the next
                     templates = [
-                        template_from_message(node.get(keys.template(t, recognition.descriptor), pipeline.template_timeout_s))
+                        template_from_message(
+                            node.get(
+                                keys.template(t, recognition.descriptor),
+                                pipeline.template_timeout_s,
+                            )
+                        )
                         for t in targets
                     ]
                 cloud = message.data
-                result = recognize(cloud["points_m"].astype(np.float64), templates, recognition,
-                                   seed=message.seq, viewpoint_m=cloud.get("viewpoint_m"))
-                node.publish(keys.detections(args.uav), {
-                    "stamp_ns": message.stamp_ns, "cloud_seq": message.seq,
-                    "frame_seqs": list(cloud["frame_seqs"]), "source": cloud["source"],
-                    "detections": [_detection(d) for d in result.detections],
-                })
+                result = recognize(
+                    cloud["points_m"].astype(np.float64),
+                    templates,
+                    recognition,
+                    seed=message.seq,
+                    viewpoint_m=cloud.get("viewpoint_m"),
+                )
+                node.publish(
+                    keys.detections(args.uav),
+                    {
+                        "stamp_ns": message.stamp_ns,
+                        "cloud_seq": message.seq,
+                        "frame_seqs": list(cloud["frame_seqs"]),
+                        "source": cloud["source"],
+                        "detections": [_detection(d) for d in result.detections],
+                    },
+                )
                 node.timing(message.seq, message.stamp_ns, result.stage_times_ms)
     return 0

@@ -7,6 +7,7 @@ Each ImuBatch ends at a camera frame; the first batch of a flight carries the in
 
 Example:
     atr service pose_integrator --uav uav1 --set imu.integration=paper
+
 """
 
 from __future__ import annotations
@@ -48,7 +49,9 @@ def main(argv: list[str] | None = None) -> int:
                 batch = message.data
                 t0 = time.perf_counter()
                 if "init" in batch:
-                    integrator = PoseIntegrator(config.imu, initial_state(batch["stamp_ns"], batch["init"]))
+                    integrator = PoseIntegrator(
+                        config.imu, initial_state(batch["stamp_ns"], batch["init"])
+                    )
                     poses.clear()
                 if integrator is None:
                     raise InputError(
@@ -59,18 +62,29 @@ def main(argv: list[str] | None = None) -> int:
                 frame, stamp = int(batch["frame_seq"]), int(batch["stamp_ns"])
                 T_world_cam = integrator.camera_pose(stamp)
                 poses[frame] = (stamp, T_world_cam)
-                node.publish(keys.camera_pose(args.uav), {
-                    "stamp_ns": stamp, "frame_seq": frame, "T_world_cam": T_world_cam,
-                    "integration": config.imu.integration,
-                })
+                node.publish(
+                    keys.camera_pose(args.uav),
+                    {
+                        "stamp_ns": stamp,
+                        "frame_seq": frame,
+                        "T_world_cam": T_world_cam,
+                        "integration": config.imu.integration,
+                    },
+                )
                 if frame - gap in poses:
                     stamp_t, T_world_cam_t = poses[frame - gap]
-                    node.publish(keys.relative_pose(args.uav), {
-                        "stamp_ns": stamp, "frame_seq_t": frame - gap, "frame_seq_t1": frame,
-                        "stamp_ns_t": stamp_t,
-                        "T_camt1_camt": relative_camera_pose(T_world_cam_t, T_world_cam),
-                        "T_world_cam_t": T_world_cam_t, "T_world_cam_t1": T_world_cam,
-                    })
+                    node.publish(
+                        keys.relative_pose(args.uav),
+                        {
+                            "stamp_ns": stamp,
+                            "frame_seq_t": frame - gap,
+                            "frame_seq_t1": frame,
+                            "stamp_ns_t": stamp_t,
+                            "T_camt1_camt": relative_camera_pose(T_world_cam_t, T_world_cam),
+                            "T_world_cam_t": T_world_cam_t,
+                            "T_world_cam_t1": T_world_cam,
+                        },
+                    )
                 for old in [f for f in poses if f <= frame - gap]:
                     del poses[old]
                 node.timing(message.seq, stamp, {"integrate": 1e3 * (time.perf_counter() - t0)})

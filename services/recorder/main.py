@@ -20,9 +20,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="recorder", description=__doc__)
     parser.add_argument(
         "--out",
-        default=os.environ.get("ATR_RECORDER_OUT") or time.strftime(
-            "runs/recording-%Y%m%d-%H%M%S.mcap"
-        ),
+        default=os.environ.get("ATR_RECORDER_OUT")
+        or time.strftime("runs/recording-%Y%m%d-%H%M%S.mcap"),
         help="MCAP file to write (default $ATR_RECORDER_OUT or runs/recording-<time>.mcap)",
     )
     parser.add_argument(

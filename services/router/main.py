@@ -6,6 +6,7 @@ No `zenohd` binary is needed: this is a plain Python session.
 
 Example:
     atr service router --mode router --listen tcp/0.0.0.0:7447
+
 """
 
 from __future__ import annotations
@@ -23,8 +24,12 @@ def main(argv: list[str] | None = None) -> int:
     """Run the hub until SIGTERM/SIGINT."""
     parser = argparse.ArgumentParser(prog="atr service router", description=__doc__)
     parser.add_argument("--mode", choices=["peer", "router"], default="peer")
-    parser.add_argument("--listen", action="append", default=[], help="endpoint to listen on (repeatable)")
-    parser.add_argument("--zenoh", metavar="JSON5", help="a full Zenoh config file instead of --mode/--listen")
+    parser.add_argument(
+        "--listen", action="append", default=[], help="endpoint to listen on (repeatable)"
+    )
+    parser.add_argument(
+        "--zenoh", metavar="JSON5", help="a full Zenoh config file instead of --mode/--listen"
+    )
     parser.add_argument("--uav", default="uav1", help="unused; accepted like every service")
     args = parser.parse_args(argv)
     setup_logging("router")
@@ -33,7 +38,9 @@ def main(argv: list[str] | None = None) -> int:
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
     session = open_session(config)
-    logging.getLogger("atr").info("listening on %s as %s", config["listen"]["endpoints"], config["mode"])
+    logging.getLogger("atr").info(
+        "listening on %s as %s", config["listen"]["endpoints"], config["mode"]
+    )
     stop.wait()
     session.close()
     return 0

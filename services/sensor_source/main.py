@@ -11,6 +11,7 @@ stamped with the frame's stamp_ns; nothing is ever dropped).
 
 Example:
     atr service sensor_source --scenario 1 --run 3 --frames 20 --pace lock-step
+
 """
 
 from __future__ import annotations
@@ -21,11 +22,9 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-
-from typing import TYPE_CHECKING
 
 from bus import codec, keys
 from bus.service import effective_config, service_arguments, start_node
@@ -37,57 +36,111 @@ if TYPE_CHECKING:  # the simulator (Open3D) loads only when a flight is flown, n
 log = logging.getLogger("atr")
 
 
-def frame_messages(frame: SensorFrame, uav: str, scenario: int, run: int, seed: int, first: bool,
-                   present_min_visible_fraction: float) -> Iterator[tuple[str, dict[str, Any]]]:
+def frame_messages(
+    frame: SensorFrame,
+    uav: str,
+    scenario: int,
+    run: int,
+    seed: int,
+    first: bool,
+    present_min_visible_fraction: float,
+) -> Iterator[tuple[str, dict[str, Any]]]:
     """The (key, message) pairs of one simulated frame, in publication order (image last).
 
     The truth lists the targets in the scene: those at least `present_min_visible_fraction` visible
     (ARCHITECTURE.md §4: an empty list when no target is in the scene).
     """
     imu = {
-        "stamp_ns": frame.stamp_ns, "seq": frame.seq, "frame_seq": frame.seq,
-        "t_ns": frame.imu_t_ns.astype(np.int64), "gyro_radps": frame.gyro_radps,
+        "stamp_ns": frame.stamp_ns,
+        "seq": frame.seq,
+        "frame_seq": frame.seq,
+        "t_ns": frame.imu_t_ns.astype(np.int64),
+        "gyro_radps": frame.gyro_radps,
         "accel_mps2": frame.accel_mps2,
     }
     if first:
         imu["init"] = {"T_world_imu": frame.T_world_imu, "v_world_mps": frame.v_world_imu_mps}
     yield keys.imu(uav), imu
     if frame.lidar_points_m is not None:
-        yield keys.lidar(uav), {
-            "stamp_ns": frame.stamp_ns, "seq": frame.seq, "source": "lidar", "frame_seqs": [frame.seq],
-            "points_m": frame.lidar_points_m.astype(np.float32),
-            "viewpoint_m": frame.T_world_cam[:3, 3].astype(np.float64),
-        }
-    yield keys.truth(uav), {
-        "stamp_ns": frame.stamp_ns, "seq": frame.seq, "frame_seq": frame.seq,
-        "T_world_cam": frame.T_world_cam, "scenario": scenario, "run": run, "seed": seed,
-        "targets": [
-            {"name": t.name, "T_world_target": t.T_world_target, "visible_fraction": float(t.visible_fraction)}
-            for t in frame.targets if t.visible_fraction >= present_min_visible_fraction
-        ],
-    }
-    yield keys.image(uav), {
-        "stamp_ns": frame.stamp_ns, "seq": frame.seq, "frame_seq": frame.seq, "encoding": "rgb8",
-        "data": frame.image, "K": frame.K,
-        "distortion": np.asarray(frame.dist_coeffs, np.float64),
-    }
+        yield (
+            keys.lidar(uav),
+            {
+                "stamp_ns": frame.stamp_ns,
+                "seq": frame.seq,
+                "source": "lidar",
+                "frame_seqs": [frame.seq],
+                "points_m": frame.lidar_points_m.astype(np.float32),
+                "viewpoint_m": frame.T_world_cam[:3, 3].astype(np.float64),
+            },
+        )
+    yield (
+        keys.truth(uav),
+        {
+            "stamp_ns": frame.stamp_ns,
+            "seq": frame.seq,
+            "frame_seq": frame.seq,
+            "T_world_cam": frame.T_world_cam,
+            "scenario": scenario,
+            "run": run,
+            "seed": seed,
+            "targets": [
+                {
+                    "name": t.name,
+                    "T_world_target": t.T_world_target,
+                    "visible_fraction": float(t.visible_fraction),
+                }
+                for t in frame.targets
+                if t.visible_fraction >= present_min_visible_fraction
+            ],
+        },
+    )
+    yield (
+        keys.image(uav),
+        {
+            "stamp_ns": frame.stamp_ns,
+            "seq": frame.seq,
+            "frame_seq": frame.seq,
+            "encoding": "rgb8",
+            "data": frame.image,
+            "K": frame.K,
+            "distortion": np.asarray(frame.dist_coeffs, np.float64),
+        },
+    )
 
 
 def add_flight_arguments(parser: argparse.ArgumentParser) -> None:
     """The arguments that choose a simulated flight (shared with `atr simulate`)."""
     parser.add_argument("--scenario", type=int, default=1, help="Table II scenario (1, 2, 3)")
-    parser.add_argument("--run", type=int, default=3, help="run within the scenario (1-based; 3 = 30 deg)")
+    parser.add_argument(
+        "--run", type=int, default=3, help="run within the scenario (1-based; 3 = 30 deg)"
+    )
     parser.add_argument("--frames", type=int, help="stop after this many frames")
-    parser.add_argument("--seed", type=int, default=0, help="world seed (other seeds build other worlds)")
-    parser.add_argument("--lidar", action="store_true", help="also simulate the LIDAR baseline's scans")
-    parser.add_argument("--noise", help="noise spec: shot, gaussian:10, gaussian:30, or combined with commas")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="world seed (other seeds build other worlds)"
+    )
+    parser.add_argument(
+        "--lidar", action="store_true", help="also simulate the LIDAR baseline's scans"
+    )
+    parser.add_argument(
+        "--noise", help="noise spec: shot, gaussian:10, gaussian:30, or combined with commas"
+    )
     parser.add_argument("--target-mesh", help="mesh file (PLY/OBJ/STL/GLB) replacing the T-72")
-    parser.add_argument("--clutter-mesh", action="append", default=[], help="extra confuser mesh (repeatable)")
+    parser.add_argument(
+        "--clutter-mesh", action="append", default=[], help="extra confuser mesh (repeatable)"
+    )
 
 
-def flight_frames(config: AtrConfig, scenario: int, run: int, frames: int | None, seed: int,
-                  lidar: bool, noise: str | None, target_mesh: str | None = None,
-                  clutter_meshes: tuple[str, ...] = ()) -> Iterator[SensorFrame]:
+def flight_frames(
+    config: AtrConfig,
+    scenario: int,
+    run: int,
+    frames: int | None,
+    seed: int,
+    lidar: bool,
+    noise: str | None,
+    target_mesh: str | None = None,
+    clutter_meshes: tuple[str, ...] = (),
+) -> Iterator[SensorFrame]:
     """The simulated frames of a run, with optional mesh files for the target and extra confusers."""
     from atr.io.mesh import load_mesh  # noqa: PLC0415
     from atr.sim.flight import simulate_flight  # noqa: PLC0415
@@ -96,9 +149,17 @@ def flight_frames(config: AtrConfig, scenario: int, run: int, frames: int | None
     target = load_mesh(target_mesh) if target_mesh else None
     clutter = [load_mesh(p) for p in clutter_meshes]
     name = Path(target_mesh).stem if target_mesh else None
-    return simulate_flight(scenario_preset(scenario, run), seed=seed, frames=frames, target_mesh=target,
-                           clutter_meshes=clutter, lidar=lidar, noise=noise, config=config.sim,
-                           target_name=name)
+    return simulate_flight(
+        scenario_preset(scenario, run),
+        seed=seed,
+        frames=frames,
+        target_mesh=target,
+        clutter_meshes=clutter,
+        lidar=lidar,
+        noise=noise,
+        config=config.sim,
+        target_name=name,
+    )
 
 
 class AnswerWatch:
@@ -109,7 +170,9 @@ class AnswerWatch:
         self._cond = threading.Condition()
         self._subs = [
             session.declare_subscriber(answer_key, lambda s: self._on(s, "stamp_ns")),
-            session.declare_subscriber(f"atr/{uav}/*/errors", lambda s: self._on(s, "input_stamp_ns")),
+            session.declare_subscriber(
+                f"atr/{uav}/*/errors", lambda s: self._on(s, "input_stamp_ns")
+            ),
         ]
 
     def _on(self, sample: Any, field: str) -> None:
@@ -133,11 +196,22 @@ def main(argv: list[str] | None = None) -> int:
     parser = service_arguments("sensor_source", __doc__)
     add_flight_arguments(parser)
     parser.add_argument("--pace", choices=["realtime", "fast", "lock-step"], default="lock-step")
-    parser.add_argument("--answer-timeout", type=float, default=600.0, help="lock-step wait per frame, s")
+    parser.add_argument(
+        "--answer-timeout", type=float, default=600.0, help="lock-step wait per frame, s"
+    )
     args = parser.parse_args(argv)
     config = effective_config(args)
-    frames = flight_frames(config, args.scenario, args.run, args.frames, args.seed, args.lidar,
-                           args.noise, args.target_mesh, tuple(args.clutter_mesh))
+    frames = flight_frames(
+        config,
+        args.scenario,
+        args.run,
+        args.frames,
+        args.seed,
+        args.lidar,
+        args.noise,
+        args.target_mesh,
+        tuple(args.clutter_mesh),
+    )
     with start_node("sensor_source", args, inputs=[]) as node:
         watch = AnswerWatch(node.session, args.uav, keys.detections(args.uav))
         node.ready()
@@ -148,12 +222,23 @@ def main(argv: list[str] | None = None) -> int:
                 break
             if args.pace == "realtime" and last_stamp is not None:
                 time.sleep(max(0.0, (frame.stamp_ns - last_stamp) * 1e-9))
-            for key, message in frame_messages(frame, args.uav, args.scenario, args.run, args.seed, index == 0,
-                                               config.sim.present_min_visible_fraction):
+            for key, message in frame_messages(
+                frame,
+                args.uav,
+                args.scenario,
+                args.run,
+                args.seed,
+                index == 0,
+                config.sim.present_min_visible_fraction,
+            ):
                 node.publish(key, message)
             last_stamp = frame.stamp_ns
             if args.pace == "lock-step" and not watch.wait(frame.stamp_ns, args.answer_timeout):
-                node.report_error(keys.detections(args.uav), TimeoutError(
-                    f"no answer to frame {frame.seq} within {args.answer_timeout} s"), frame.seq, frame.stamp_ns)
+                node.report_error(
+                    keys.detections(args.uav),
+                    TimeoutError(f"no answer to frame {frame.seq} within {args.answer_timeout} s"),
+                    frame.seq,
+                    frame.stamp_ns,
+                )
             log.info("frame %d published", frame.seq)
     return 0

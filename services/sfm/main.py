@@ -7,6 +7,7 @@ with a `note` while no pair exists yet — so every frame gets exactly one answe
 
 Example:
     atr service sfm --uav uav1 --set sfm.matcher=surf --set sfm.pair_gap_frames=2
+
 """
 
 from __future__ import annotations
@@ -19,10 +20,19 @@ from bus.node import Message
 from bus.service import effective_config, service_arguments, start_node
 
 
-def _cloud(stamp_ns: int, source: str, frames: list[int], points: np.ndarray, sigma: np.ndarray,
-           viewpoint: np.ndarray, note: str | None = None) -> dict:
+def _cloud(
+    stamp_ns: int,
+    source: str,
+    frames: list[int],
+    points: np.ndarray,
+    sigma: np.ndarray,
+    viewpoint: np.ndarray,
+    note: str | None = None,
+) -> dict:
     message = {
-        "stamp_ns": stamp_ns, "source": source, "frame_seqs": frames,
+        "stamp_ns": stamp_ns,
+        "source": source,
+        "frame_seqs": frames,
         "points_m": np.ascontiguousarray(points, np.float32),
         "sigma_m": np.ascontiguousarray(sigma, np.float32),
         "viewpoint_m": np.asarray(viewpoint, np.float64),
@@ -47,15 +57,39 @@ def main(argv: list[str] | None = None) -> int:
             if image_a is None:
                 note = f"image of frame {pose['frame_seq_t']} never arrived"
                 empty = np.zeros((0, 3))
-                node.publish(keys.sfm_cloud(args.uav), _cloud(
-                    image_b["stamp_ns"], source, [pose["frame_seq_t"], frame], empty, empty[:, 0],
-                    pose["T_world_cam_t1"][:3, 3], note))
+                node.publish(
+                    keys.sfm_cloud(args.uav),
+                    _cloud(
+                        image_b["stamp_ns"],
+                        source,
+                        [pose["frame_seq_t"], frame],
+                        empty,
+                        empty[:, 0],
+                        pose["T_world_cam_t1"][:3, 3],
+                        note,
+                    ),
+                )
                 return
-            cloud = reconstruct(image_a["data"], image_b["data"], image_b["K"],
-                                pose["T_world_cam_t"], pose["T_world_cam_t1"], config)
-            node.publish(keys.sfm_cloud(args.uav), _cloud(
-                image_b["stamp_ns"], source, [pose["frame_seq_t"], frame], cloud.points_world_m,
-                cloud.sigma_m, pose["T_world_cam_t1"][:3, 3], cloud.reason or None))
+            cloud = reconstruct(
+                image_a["data"],
+                image_b["data"],
+                image_b["K"],
+                pose["T_world_cam_t"],
+                pose["T_world_cam_t1"],
+                config,
+            )
+            node.publish(
+                keys.sfm_cloud(args.uav),
+                _cloud(
+                    image_b["stamp_ns"],
+                    source,
+                    [pose["frame_seq_t"], frame],
+                    cloud.points_world_m,
+                    cloud.sigma_m,
+                    pose["T_world_cam_t1"][:3, 3],
+                    cloud.reason or None,
+                ),
+            )
             stages = {k[5:-2]: 1e3 * v for k, v in cloud.stats.items() if k.startswith("time_")}
             node.timing(trigger.seq, image_b["stamp_ns"], stages)
 
@@ -68,9 +102,18 @@ def main(argv: list[str] | None = None) -> int:
                         del images[stale]  # its pose never came (reported upstream)
                     if frame < gap:
                         empty = np.zeros((0, 3))
-                        node.publish(keys.sfm_cloud(args.uav), _cloud(
-                            message.stamp_ns, source, [frame], empty, empty[:, 0], np.zeros(3),
-                            f"frame {frame} has no partner {gap} frames earlier yet"))
+                        node.publish(
+                            keys.sfm_cloud(args.uav),
+                            _cloud(
+                                message.stamp_ns,
+                                source,
+                                [frame],
+                                empty,
+                                empty[:, 0],
+                                np.zeros(3),
+                                f"frame {frame} has no partner {gap} frames earlier yet",
+                            ),
+                        )
                 else:
                     frame = int(message.data["frame_seq_t1"])
                     pairs[frame] = message.data

@@ -9,6 +9,7 @@ before the service reports ready; other descriptors are built on their first que
 Example:
     atr service template_store --set recognition.descriptor=fpfh --cache templates/
     atr service template_store --set "pipeline.target_meshes=[my_tank.ply]"
+
 """
 
 from __future__ import annotations
@@ -43,7 +44,10 @@ def target_meshes(config: AtrConfig) -> dict[str, object]:
 
 def cache_key(mesh: object, descriptor: str, config: AtrConfig) -> str:
     """Content hash of the mesh and every parameter that shapes the template."""
-    params = dataclasses.asdict(config.recognition) | {"descriptor": descriptor, "version": TEMPLATE_VERSION}
+    params = dataclasses.asdict(config.recognition) | {
+        "descriptor": descriptor,
+        "version": TEMPLATE_VERSION,
+    }
     digest = hashlib.sha256(json.dumps(params, sort_keys=True, default=str).encode())
     digest.update(mesh.vertices.tobytes())
     digest.update(mesh.triangles.tobytes())
@@ -82,25 +86,40 @@ class TemplateStore:
         template = build_template(mesh.vertices, mesh.triangles, target, descriptor, config)
         data = template.to_dict()
         message = {
-            "stamp_ns": 0, "seq": 0, "version": 1, "target": target, "descriptor": descriptor,
-            "cache_key": key, "radius_m": data["radius_m"], "resolution_m": config.resolution_m,
-            "points_m": data["points_m"], "normals": data["normals"],
-            "keypoints_m": data["keypoints_m"], "descriptors": data["descriptors"],
+            "stamp_ns": 0,
+            "seq": 0,
+            "version": 1,
+            "target": target,
+            "descriptor": descriptor,
+            "cache_key": key,
+            "radius_m": data["radius_m"],
+            "resolution_m": config.resolution_m,
+            "points_m": data["points_m"],
+            "normals": data["normals"],
+            "keypoints_m": data["keypoints_m"],
+            "descriptors": data["descriptors"],
             "params": json.loads(json.dumps(data["params"], default=str)),
         }
         self.cache_dir.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp")
         tmp.write_bytes(codec.encode("Template", message))
         tmp.replace(path)
-        log.info("built template %s/%s: %d keypoints, %.2f KB", target, descriptor,
-                 len(data["keypoints_m"]), (data["descriptors"].nbytes + data["keypoints_m"].nbytes) / 1024)
+        log.info(
+            "built template %s/%s: %d keypoints, %.2f KB",
+            target,
+            descriptor,
+            len(data["keypoints_m"]),
+            (data["descriptors"].nbytes + data["keypoints_m"].nbytes) / 1024,
+        )
         return message
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the service until stopped."""
     parser = service_arguments("template_store", __doc__)
-    parser.add_argument("--cache", type=Path, default=REPO / "templates", help="template cache folder")
+    parser.add_argument(
+        "--cache", type=Path, default=REPO / "templates", help="template cache folder"
+    )
     args = parser.parse_args(argv)
     config = effective_config(args)
     with start_node("template_store", args, inputs=[]) as node:

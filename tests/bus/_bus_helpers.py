@@ -1,13 +1,13 @@
 """Helper processes for the recorder/replayer tests (run as scripts; not collected by pytest).
 
-    python _bus_helpers.py publish --frames N [--uav uav1] [--image-shape 48 64]
-        waits until a recorder's Status is seen, then publishes N frames of inputs (truth, IMU
-        batch, image, LIDAR cloud) plus one non-input message (a camera pose) per frame through
-        bus.node.Node, and exits.
-    python _bus_helpers.py pipeline --seed S [--error-every K]
-        a fake pipeline: answers every camera image with one Detections of the same stamp_ns after a
-        random delay (or, every K-th frame, with an ErrorReport whose input_stamp_ns is the
-        image's), until SIGTERM.
+python _bus_helpers.py publish --frames N [--uav uav1] [--image-shape 48 64]
+    waits until a recorder's Status is seen, then publishes N frames of inputs (truth, IMU
+    batch, image, LIDAR cloud) plus one non-input message (a camera pose) per frame through
+    bus.node.Node, and exits.
+python _bus_helpers.py pipeline --seed S [--error-every K]
+    a fake pipeline: answers every camera image with one Detections of the same stamp_ns after a
+    random delay (or, every K-th frame, with an ErrorReport whose input_stamp_ns is the
+    image's), until SIGTERM.
 """
 
 from __future__ import annotations
@@ -28,7 +28,9 @@ FRAME_PERIOD_NS = 33_333_333
 STAMP0_NS = 1_000_000_000
 
 
-def frame_messages(frame: int, uav: str, image_shape: tuple[int, int], rng: np.random.Generator) -> list[tuple[str, dict[str, Any]]]:
+def frame_messages(
+    frame: int, uav: str, image_shape: tuple[int, int], rng: np.random.Generator
+) -> list[tuple[str, dict[str, Any]]]:
     """The inputs of one frame, in the order a sensor source would publish them."""
     stamp = STAMP0_NS + frame * FRAME_PERIOD_NS
     t_ns = stamp - FRAME_PERIOD_NS + np.arange(1, 8, dtype=np.int64) * (FRAME_PERIOD_NS // 7)
@@ -36,22 +38,46 @@ def frame_messages(frame: int, uav: str, image_shape: tuple[int, int], rng: np.r
     T = np.eye(4)
     T[:3, 3] = rng.normal(size=3)
     return [
-        (keys.truth(uav), {
-            "stamp_ns": stamp, "frame_seq": frame, "T_world_cam": T, "scenario": 1, "run": 1,
-            "targets": [{"name": "t72", "T_world_target": np.eye(4), "visible_fraction": 0.5}],
-        }),
-        (keys.imu(uav), {
-            "stamp_ns": stamp, "frame_seq": frame, "t_ns": t_ns,
-            "gyro_radps": rng.normal(size=(7, 3)), "accel_mps2": rng.normal(size=(7, 3)),
-        }),
-        (keys.image(uav), {
-            "stamp_ns": stamp, "frame_seq": frame, "encoding": "rgb8",
-            "data": rng.integers(0, 256, (*image_shape, 3), dtype=np.uint8), "K": np.eye(3),
-        }),
-        (keys.lidar(uav), {
-            "stamp_ns": stamp, "source": "lidar", "frame_seqs": [frame],
-            "points_m": rng.normal(size=(500, 3)).astype(np.float32),
-        }),
+        (
+            keys.truth(uav),
+            {
+                "stamp_ns": stamp,
+                "frame_seq": frame,
+                "T_world_cam": T,
+                "scenario": 1,
+                "run": 1,
+                "targets": [{"name": "t72", "T_world_target": np.eye(4), "visible_fraction": 0.5}],
+            },
+        ),
+        (
+            keys.imu(uav),
+            {
+                "stamp_ns": stamp,
+                "frame_seq": frame,
+                "t_ns": t_ns,
+                "gyro_radps": rng.normal(size=(7, 3)),
+                "accel_mps2": rng.normal(size=(7, 3)),
+            },
+        ),
+        (
+            keys.image(uav),
+            {
+                "stamp_ns": stamp,
+                "frame_seq": frame,
+                "encoding": "rgb8",
+                "data": rng.integers(0, 256, (*image_shape, 3), dtype=np.uint8),
+                "K": np.eye(3),
+            },
+        ),
+        (
+            keys.lidar(uav),
+            {
+                "stamp_ns": stamp,
+                "source": "lidar",
+                "frame_seqs": [frame],
+                "points_m": rng.normal(size=(500, 3)).astype(np.float32),
+            },
+        ),
         (keys.camera_pose(uav), {"stamp_ns": stamp, "frame_seq": frame, "T_world_cam": T}),
     ]
 
@@ -93,10 +119,16 @@ def pipeline(args: argparse.Namespace) -> int:
                 uav = message.key.split("/")[1]
                 if args.error_every and n % args.error_every == args.error_every - 1:
                     raise InputError(f"frame {message.data['frame_seq']} refused on purpose")
-                node.publish(keys.detections(uav), {
-                    "stamp_ns": message.stamp_ns, "cloud_seq": message.seq, "detections": [],
-                    "frame_seqs": [message.data["frame_seq"]], "source": "fake",
-                })
+                node.publish(
+                    keys.detections(uav),
+                    {
+                        "stamp_ns": message.stamp_ns,
+                        "cloud_seq": message.seq,
+                        "detections": [],
+                        "frame_seqs": [message.data["frame_seq"]],
+                        "source": "fake",
+                    },
+                )
     return 0
 
 

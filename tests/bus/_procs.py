@@ -21,16 +21,23 @@ from conftest import bus_env, peer_config  # noqa: E402
 def atr(hub: str, *args: str, **kwargs: Any) -> subprocess.Popen[bytes]:
     """Start `atr ARGS` as a process on the hub's bus."""
     return subprocess.Popen(
-        [sys.executable, "-m", "cli.main", *args], env=bus_env(hub), cwd=REPO,
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kwargs,
+        [sys.executable, "-m", "cli.main", *args],
+        env=bus_env(hub),
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        **kwargs,
     )
 
 
 def helper(hub: str, *args: str) -> subprocess.Popen[bytes]:
     """Start tests/bus/_bus_helpers.py ARGS as a process on the hub's bus."""
     return subprocess.Popen(
-        [sys.executable, str(HERE / "_bus_helpers.py"), *args], env=bus_env(hub), cwd=REPO,
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        [sys.executable, str(HERE / "_bus_helpers.py"), *args],
+        env=bus_env(hub),
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
     )
 
 

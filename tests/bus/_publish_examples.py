@@ -11,10 +11,17 @@ from bus.node import Node  # noqa: E402
 from bus.session import default_config  # noqa: E402
 
 KEYS = {
-    "Image": "atr/uav1/camera/image", "ImuBatch": "atr/uav1/imu", "PointCloud": "atr/uav1/sfm/cloud",
-    "CameraPose": "atr/uav1/pose/camera", "RelativePose": "atr/uav1/pose/relative",
-    "Detections": "atr/uav1/detections", "Template": "atr/templates/t72/fpfh", "Truth": "sim/uav1/truth",
-    "Status": "atr/uav1/x/status", "ErrorReport": "atr/uav1/x/errors", "Timing": "atr/uav1/x/timing",
+    "Image": "atr/uav1/camera/image",
+    "ImuBatch": "atr/uav1/imu",
+    "PointCloud": "atr/uav1/sfm/cloud",
+    "CameraPose": "atr/uav1/pose/camera",
+    "RelativePose": "atr/uav1/pose/relative",
+    "Detections": "atr/uav1/detections",
+    "Template": "atr/templates/t72/fpfh",
+    "Truth": "sim/uav1/truth",
+    "Status": "atr/uav1/x/status",
+    "ErrorReport": "atr/uav1/x/errors",
+    "Timing": "atr/uav1/x/timing",
 }
 
 if __name__ == "__main__":

@@ -13,7 +13,9 @@ from bus import mcap_tools, schemas
 from cli.main import main as atr_main
 
 
-def _write(path: Path, n: int = 40, chunk_size: int = 2000) -> list[tuple[str, int, int, int, bytes]]:
+def _write(
+    path: Path, n: int = 40, chunk_size: int = 2000
+) -> list[tuple[str, int, int, int, bytes]]:
     """A file with two schema'd channels and one without schema; returns what was written."""
     written = []
     with mcap_tools.ChunkedWriter(path, chunk_size_bytes=chunk_size) as w:
@@ -22,7 +24,11 @@ def _write(path: Path, n: int = 40, chunk_size: int = 2000) -> list[tuple[str, i
         b = w.add_channel("atr/uav1/imu", "msgpack", w.add_schema("ImuBatch", "jsonschema", b"{}"))
         c = w.add_channel("foreign/key", "msgpack", 0)
         for i in range(n):
-            channel, topic = [(a, "atr/uav1/camera/image"), (b, "atr/uav1/imu"), (c, "foreign/key")][i % 3]
+            channel, topic = [
+                (a, "atr/uav1/camera/image"),
+                (b, "atr/uav1/imu"),
+                (c, "foreign/key"),
+            ][i % 3]
             data = bytes([i % 256]) * (50 + 7 * i)
             w.add_message(channel, 1_000 + 10 * i, 500 + i, i, data)
             written.append((topic, 1_000 + 10 * i, 500 + i, i, data))
@@ -34,7 +40,10 @@ def test_written_file_reads_back_with_the_mcap_library(tmp_path: Path) -> None:
     written = _write(path)
     with open(path, "rb") as f:
         reader = make_reader(f, validate_crcs=True)
-        got = [(c.topic, m.log_time, m.publish_time, m.sequence, m.data) for _, c, m in reader.iter_messages()]
+        got = [
+            (c.topic, m.log_time, m.publish_time, m.sequence, m.data)
+            for _, c, m in reader.iter_messages()
+        ]
         summary = reader.get_summary()
     assert got == written
     assert summary is not None and summary.statistics.message_count == len(written)
@@ -77,7 +86,9 @@ def test_check_names_a_flipped_byte_inside_a_chunk(tmp_path: Path) -> None:
     path.write_bytes(bytes(data))
     problems = mcap_tools.check(path)
     assert problems, "a corrupted chunk must be reported"
-    assert any(f"chunk #3 at offset {offset}" in p and ("CRC" in p or "corrupted" in p) for p in problems), problems
+    assert any(
+        f"chunk #3 at offset {offset}" in p and ("CRC" in p or "corrupted" in p) for p in problems
+    ), problems
 
 
 def test_check_names_a_truncated_file_and_recover_keeps_its_complete_chunks(tmp_path: Path) -> None:
@@ -95,7 +106,10 @@ def test_check_names_a_truncated_file_and_recover_keeps_its_complete_chunks(tmp_
     assert result.problem is not None and "truncated" in result.problem
     assert mcap_tools.check(out) == []
     with open(out, "rb") as f:
-        got = [(c.topic, m.log_time, m.publish_time, m.sequence, m.data) for _, c, m in make_reader(f).iter_messages()]
+        got = [
+            (c.topic, m.log_time, m.publish_time, m.sequence, m.data)
+            for _, c, m in make_reader(f).iter_messages()
+        ]
     assert got == written[: len(got)]
     with open(path, "rb") as f:
         summary = make_reader(f).get_summary()

@@ -19,18 +19,20 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "schemas"))
+from _publish_examples import KEYS  # noqa: E402
 from conftest import REPO, bus_env, free_port, peer_config, stop_process, wait_for_port  # noqa: E402
 from test_codec import assert_same, example  # noqa: E402
-
-from _publish_examples import KEYS  # noqa: E402
 
 pytestmark = pytest.mark.e2e
 
 
 def test_every_message_type_round_trips_between_processes(hub):
     with Node("receiver", "uav9", list(KEYS.values()), zenoh_config=peer_config(hub)) as node:
-        child = subprocess.Popen([sys.executable, str(HERE / "_publish_examples.py"), hub, "1.5"],
-                                 env=bus_env(hub), cwd=REPO)
+        child = subprocess.Popen(
+            [sys.executable, str(HERE / "_publish_examples.py"), hub, "1.5"],
+            env=bus_env(hub),
+            cwd=REPO,
+        )
         got = {}
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline and len(got) < len(KEYS):
@@ -44,8 +46,13 @@ def test_every_message_type_round_trips_between_processes(hub):
 
 
 def _service(name: str, hub: str, *args: str) -> subprocess.Popen[bytes]:
-    return subprocess.Popen([sys.executable, "-m", "cli.main", "service", name, *args], env=bus_env(hub),
-                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    return subprocess.Popen(
+        [sys.executable, "-m", "cli.main", "service", name, *args],
+        env=bus_env(hub),
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+    )
 
 
 def _wait_running(session: zenoh.Session, service: str, timeout_s: float = 120) -> dict:
@@ -67,9 +74,16 @@ def _wait_running(session: zenoh.Session, service: str, timeout_s: float = 120) 
 
 def _good_imu(seq: int) -> dict:
     t = 1_000_000_000 + np.arange(1, 21, dtype=np.int64) * 5_000_000
-    return {"stamp_ns": int(t[-1]), "seq": seq, "version": 1, "frame_seq": seq, "t_ns": t,
-            "gyro_radps": np.zeros((20, 3)), "accel_mps2": np.tile([0.0, 0.0, 9.80665], (20, 1)),
-            "init": {"T_world_imu": np.eye(4), "v_world_mps": np.zeros(3)}}
+    return {
+        "stamp_ns": int(t[-1]),
+        "seq": seq,
+        "version": 1,
+        "frame_seq": seq,
+        "t_ns": t,
+        "gyro_radps": np.zeros((20, 3)),
+        "accel_mps2": np.tile([0.0, 0.0, 9.80665], (20, 1)),
+        "init": {"T_world_imu": np.eye(4), "v_world_mps": np.zeros(3)},
+    }
 
 
 def test_bad_inputs_are_reported_and_the_next_good_one_is_processed(hub):
@@ -78,10 +92,13 @@ def test_bad_inputs_are_reported_and_the_next_good_one_is_processed(hub):
     try:
         _wait_running(session, "pose_integrator")
         errors, poses = [], []
-        session.declare_subscriber("atr/uav1/pose_integrator/errors",
-                                   lambda s: errors.append(codec.unpack(s.payload.to_bytes())))
-        session.declare_subscriber("atr/uav1/pose/camera",
-                                   lambda s: poses.append(codec.unpack(s.payload.to_bytes())))
+        session.declare_subscriber(
+            "atr/uav1/pose_integrator/errors",
+            lambda s: errors.append(codec.unpack(s.payload.to_bytes())),
+        )
+        session.declare_subscriber(
+            "atr/uav1/pose/camera", lambda s: poses.append(codec.unpack(s.payload.to_bytes()))
+        )
         time.sleep(0.5)
         good = _good_imu(0)
         bad = [
@@ -115,13 +132,19 @@ def test_killed_service_is_restarted_by_atr_up(tmp_path):
     port = free_port()
     layout = tmp_path / "mini.yml"
     layout.write_text(
-        "name: mini\nvariables: {uav: uav1, hub: 'tcp/127.0.0.1:%d'}\nzenoh: compose/zenoh/local.json5\n"
+        f"name: mini\nvariables: {{uav: uav1, hub: 'tcp/127.0.0.1:{port}'}}\n"
+        "zenoh: compose/zenoh/local.json5\n"
         "processes:\n  - {name: router, service: router, role: hub, args: [--listen, '${hub}']}\n"
-        "  - {name: pose_integrator, service: pose_integrator}\n" % port
+        "  - {name: pose_integrator, service: pose_integrator}\n"
     )
     env = bus_env(f"tcp/127.0.0.1:{port}")
-    up = subprocess.Popen([sys.executable, "-m", "cli.main", "up", str(layout)], env=env, cwd=REPO,
-                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    up = subprocess.Popen(
+        [sys.executable, "-m", "cli.main", "up", str(layout)],
+        env=env,
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+    )
     try:
         wait_for_port(port, 30)
         session = open_session(peer_config(f"tcp/127.0.0.1:{port}"))

@@ -35,7 +35,9 @@ def _start_recorder(hub: str, watcher: Watcher, out: Path, *extra: str):
     return proc
 
 
-def test_records_every_message_as_sent_and_closes_cleanly_on_sigterm(hub: str, tmp_path: Path) -> None:
+def test_records_every_message_as_sent_and_closes_cleanly_on_sigterm(
+    hub: str, tmp_path: Path
+) -> None:
     out = tmp_path / "rec.mcap"
     watcher = Watcher(hub)
     try:
@@ -99,9 +101,15 @@ def test_bad_input_from_a_foreign_session_is_recorded_as_it_came(hub: str, tmp_p
     for key, payload, _ in sent:
         assert got[key][1].data == payload, key
     # seq/stamp: from the attachment, else the payload's own fields, else 0
-    assert (got["atr/uav1/lidar/cloud"][1].sequence, got["atr/uav1/lidar/cloud"][1].publish_time) == (9, 123)
+    assert (
+        got["atr/uav1/lidar/cloud"][1].sequence,
+        got["atr/uav1/lidar/cloud"][1].publish_time,
+    ) == (9, 123)
     assert (got["atr/uav1/imu"][1].sequence, got["atr/uav1/imu"][1].publish_time) == (3, 77)
-    assert (got["atr/uav1/camera/image"][1].sequence, got["atr/uav1/camera/image"][1].publish_time) == (0, 0)
+    assert (
+        got["atr/uav1/camera/image"][1].sequence,
+        got["atr/uav1/camera/image"][1].publish_time,
+    ) == (0, 0)
     assert got["atr/elsewhere/unknown/thing"][0] is None  # outside the contract: no schema
     assert got["atr/uav1/imu"][0].name == "ImuBatch"
 

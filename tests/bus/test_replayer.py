@@ -73,7 +73,9 @@ def test_replayed_inputs_are_byte_identical(hub: str, tmp_path: Path, original: 
         watcher.close()
 
     def inputs(path: Path) -> list[tuple[str, bytes, int, int]]:
-        return [(t, m.data, m.sequence, m.publish_time) for t, m in _messages(path) if is_input_topic(t)]
+        return [
+            (t, m.data, m.sequence, m.publish_time) for t, m in _messages(path) if is_input_topic(t)
+        ]
 
     first, second = inputs(original), inputs(again)
     assert len(first) == 6 * 4
@@ -109,8 +111,18 @@ def test_lock_step_releases_a_frame_only_after_the_answer_to_the_last(
     try:
         watcher.wait_for("fake_pipeline")
         _record(
-            hub, watcher, answered,
-            ["replay", str(original), "--lock-step", "--wait-for", "fake_pipeline", "--answer-timeout", "10"],
+            hub,
+            watcher,
+            answered,
+            [
+                "replay",
+                str(original),
+                "--lock-step",
+                "--wait-for",
+                "fake_pipeline",
+                "--answer-timeout",
+                "10",
+            ],
         )
     finally:
         pipeline.send_signal(signal.SIGTERM)
@@ -133,7 +145,9 @@ def test_lock_step_releases_a_frame_only_after_the_answer_to_the_last(
         assert answer_index > index
         # nothing of the replay after frame k's image is recorded before frame k's answer
         later_inputs = [i for i, (t, _) in enumerate(records) if is_input_topic(t) and i > index]
-        assert all(i > answer_index for i in later_inputs), f"frame {k} released input before its answer"
+        assert all(i > answer_index for i in later_inputs), (
+            f"frame {k} released input before its answer"
+        )
     # every third frame was answered with an ErrorReport instead of Detections
     errors = [t for t, _ in records if t == "atr/uav1/fake_pipeline/errors"]
     assert len(errors) == 2

@@ -58,10 +58,26 @@ def test_text_output_and_xyz_mesh_inputs(tmp_path, capsys):
 
 def test_bad_files_exit_1(tmp_path, capsys):
     (tmp_path / "bad.xyz").write_text("1 2\n3 4\n")
-    assert main(["recognize", "--model", str(tmp_path / "none.pcd"), "--scene", str(tmp_path / "bad.xyz")]) == 1
+    assert (
+        main(
+            [
+                "recognize",
+                "--model",
+                str(tmp_path / "none.pcd"),
+                "--scene",
+                str(tmp_path / "bad.xyz"),
+            ]
+        )
+        == 1
+    )
     assert "no such file" in capsys.readouterr().err
     (tmp_path / "m.xyz").write_text("0 0 0\n1 0 0\n0 1 0\n")
-    assert main(["recognize", "--model", str(tmp_path / "m.xyz"), "--scene", str(tmp_path / "bad.xyz")]) == 1
+    assert (
+        main(
+            ["recognize", "--model", str(tmp_path / "m.xyz"), "--scene", str(tmp_path / "bad.xyz")]
+        )
+        == 1
+    )
     assert "columns" in capsys.readouterr().err
     assert main(["recognize", "--model", str(tmp_path / "m.xyz"), "--scene", str(tmp_path / "m.xyz"),
                  "--resolution", "abc"]) == 1  # fmt: skip

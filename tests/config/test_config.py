@@ -16,11 +16,18 @@ def test_paper_defaults():
 
 
 def test_overrides_are_typed():
-    config = load_config(overrides=["sfm.matcher=surf", "recognition.resolution_m=1",
-                                    "recognition.template_azimuths_deg=[0, 90, 180]",
-                                    "pipeline.targets=[t72]"])
+    config = load_config(
+        overrides=[
+            "sfm.matcher=surf",
+            "recognition.resolution_m=1",
+            "recognition.template_azimuths_deg=[0, 90, 180]",
+            "pipeline.targets=[t72]",
+        ]
+    )
     assert config.sfm.matcher == "surf"
-    assert config.recognition.resolution_m == 1.0 and isinstance(config.recognition.resolution_m, float)
+    assert config.recognition.resolution_m == 1.0 and isinstance(
+        config.recognition.resolution_m, float
+    )
     assert config.recognition.template_azimuths_deg == (0.0, 90.0, 180.0)
     assert config.pipeline.targets == ("t72",)
 
@@ -32,8 +39,13 @@ def test_imu_extrinsic_defaults_to_the_simulated_camera_head():
 
 @pytest.mark.parametrize(
     ("override", "named"),
-    [("sfm.matcher=orb", "orb"), ("sfm.nope=1", "nope"), ("recognition.resolution_m=-1", "resolution_m"),
-     ("recognition.knndr_k=ten", "ten"), ("no_equals_sign", "no_equals_sign")],
+    [
+        ("sfm.matcher=orb", "orb"),
+        ("sfm.nope=1", "nope"),
+        ("recognition.resolution_m=-1", "resolution_m"),
+        ("recognition.knndr_k=ten", "ten"),
+        ("no_equals_sign", "no_equals_sign"),
+    ],
 )
 def test_bad_overrides_name_the_value(override, named):
     with pytest.raises(ConfigError, match=named):

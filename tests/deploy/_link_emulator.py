@@ -58,10 +58,15 @@ class LinkStats:
     def as_dict(self) -> dict:
         """Counters as JSON-able values (timelines summarised per second)."""
         return {
-            "bytes_up": self.bytes_up, "bytes_down": self.bytes_down,
-            "segments_up": self.segments_up, "segments_down": self.segments_down,
-            "lost_up": self.lost_up, "lost_down": self.lost_down, "connections": self.connections,
-            "timeline_up": self.timeline_up[-20000:], "timeline_down": self.timeline_down[-20000:],
+            "bytes_up": self.bytes_up,
+            "bytes_down": self.bytes_down,
+            "segments_up": self.segments_up,
+            "segments_down": self.segments_down,
+            "lost_up": self.lost_up,
+            "lost_down": self.lost_down,
+            "connections": self.connections,
+            "timeline_up": self.timeline_up[-20000:],
+            "timeline_down": self.timeline_down[-20000:],
         }
 
 
@@ -103,11 +108,23 @@ class LinkEmulator:
         seed: seed of the loss draws.
     """
 
-    def __init__(self, listen: tuple[str, int], target: tuple[str, int], *, delay_s: float = 0.0,
-                 loss: float = 0.0, rate_bps: float | None = None, retransmit_s: float | None = None,
-                 segment_bytes: int = 1448, buffer_bytes: int = 256 * 1024, seed: int = 0) -> None:
+    def __init__(
+        self,
+        listen: tuple[str, int],
+        target: tuple[str, int],
+        *,
+        delay_s: float = 0.0,
+        loss: float = 0.0,
+        rate_bps: float | None = None,
+        retransmit_s: float | None = None,
+        segment_bytes: int = 1448,
+        buffer_bytes: int = 256 * 1024,
+        seed: int = 0,
+    ) -> None:
         if delay_s < 0 or not 0 <= loss < 1 or (rate_bps is not None and rate_bps <= 0):
-            raise ValueError(f"delay {delay_s} s must be >= 0, loss {loss} in [0, 1), rate {rate_bps} > 0")
+            raise ValueError(
+                f"delay {delay_s} s must be >= 0, loss {loss} in [0, 1), rate {rate_bps} > 0"
+            )
         self.target = target
         self.delay_s = delay_s
         self.loss = loss
@@ -194,10 +211,12 @@ class LinkEmulator:
                         break
                     now = time.monotonic()
                     for i in range(0, len(data), self.segment_bytes):
-                        segment = data[i:i + self.segment_bytes]
+                        segment = data[i : i + self.segment_bytes]
                         with cond:
                             # a full buffer stops reading: the sender's TCP window fills, as on a real bottleneck
-                            cond.wait_for(lambda: queued[0] < self.buffer_bytes or self._stop.is_set(), 1.0)
+                            cond.wait_for(
+                                lambda: queued[0] < self.buffer_bytes or self._stop.is_set(), 1.0
+                            )
                             deliver_at, lost = direction.schedule(len(segment), now)
                             if pending:  # in-order delivery: a retransmission holds up what follows
                                 deliver_at = max(deliver_at, pending[-1][0])
@@ -238,7 +257,9 @@ class LinkEmulator:
                     pass
 
         for target, name in ((read, "read"), (write, "write")):
-            thread = threading.Thread(target=target, name=f"link-{direction.name}-{name}", daemon=True)
+            thread = threading.Thread(
+                target=target, name=f"link-{direction.name}-{name}", daemon=True
+            )
             thread.start()
             self._threads.append(thread)
 
@@ -270,17 +291,27 @@ def _address(text: str) -> tuple[str, int]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the emulator until SIGTERM, writing its counters to --stats."""
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--listen", type=_address, required=True, help="HOST:PORT to accept on")
     parser.add_argument("--to", type=_address, required=True, help="HOST:PORT to forward to")
-    parser.add_argument("--delay-ms", type=float, default=0.0, help="one-way delay per direction, ms")
+    parser.add_argument(
+        "--delay-ms", type=float, default=0.0, help="one-way delay per direction, ms"
+    )
     parser.add_argument("--loss", type=float, default=0.0, help="segment loss probability")
     parser.add_argument("--rate-kbps", type=float, help="rate per direction, kbit/s")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--stats", type=Path, help="JSON file for the counters")
     args = parser.parse_args(argv)
-    emulator = LinkEmulator(args.listen, args.to, delay_s=args.delay_ms / 1000, loss=args.loss,
-                            rate_bps=args.rate_kbps * 1000 if args.rate_kbps else None, seed=args.seed)
+    emulator = LinkEmulator(
+        args.listen,
+        args.to,
+        delay_s=args.delay_ms / 1000,
+        loss=args.loss,
+        rate_bps=args.rate_kbps * 1000 if args.rate_kbps else None,
+        seed=args.seed,
+    )
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())

@@ -58,10 +58,24 @@ class TwoHosts:
         try:
             for host in ("ground", "air"):
                 _ip("netns", "add", self.ns[host])
-            _ip("link", "add", self.dev["ground"], "netns", self.ns["ground"], "type", "veth",
-                "peer", "name", self.dev["air"], "netns", self.ns["air"])
+            _ip(
+                "link",
+                "add",
+                self.dev["ground"],
+                "netns",
+                self.ns["ground"],
+                "type",
+                "veth",
+                "peer",
+                "name",
+                self.dev["air"],
+                "netns",
+                self.ns["air"],
+            )
             for host in ("ground", "air"):
-                _ip("-n", self.ns[host], "addr", "add", f"{self.ip[host]}/24", "dev", self.dev[host])
+                _ip(
+                    "-n", self.ns[host], "addr", "add", f"{self.ip[host]}/24", "dev", self.dev[host]
+                )
                 _ip("-n", self.ns[host], "link", "set", self.dev[host], "up")
                 _ip("-n", self.ns[host], "link", "set", "lo", "up")
         except BaseException:
@@ -72,19 +86,38 @@ class TwoHosts:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def start(self, host: str, command: list[str], *, env: dict[str, str] | None = None,
-              cwd: Path | None = None, stdout: Any = None, stderr: Any = None,
-              text: bool = False) -> subprocess.Popen[Any]:
+    def start(
+        self,
+        host: str,
+        command: list[str],
+        *,
+        env: dict[str, str] | None = None,
+        cwd: Path | None = None,
+        stdout: Any = None,
+        stderr: Any = None,
+        text: bool = False,
+    ) -> subprocess.Popen[Any]:
         """Start `command` inside `host`'s namespace (its own process group, killed on close)."""
-        proc = subprocess.Popen(["ip", "netns", "exec", self.ns[host], *command], env=env, cwd=cwd,
-                                stdout=stdout, stderr=stderr, text=text, start_new_session=True)
+        proc = subprocess.Popen(
+            ["ip", "netns", "exec", self.ns[host], *command],
+            env=env,
+            cwd=cwd,
+            stdout=stdout,
+            stderr=stderr,
+            text=text,
+            start_new_session=True,
+        )
         self.procs.append(proc)
         return proc
 
     def run(self, host: str, command: list[str], timeout_s: float = 30.0) -> str:
         """Run `command` in `host`'s namespace to completion; its stdout."""
-        result = subprocess.run(["ip", "netns", "exec", self.ns[host], *command], capture_output=True,
-                                text=True, timeout=timeout_s)
+        result = subprocess.run(
+            ["ip", "netns", "exec", self.ns[host], *command],
+            capture_output=True,
+            text=True,
+            timeout=timeout_s,
+        )
         if result.returncode != 0:
             raise RuntimeError(f"{command} in {host}: {result.stderr.strip()}")
         return result.stdout
@@ -97,11 +130,30 @@ class TwoHosts:
             if rate_bps is None:
                 continue
             rate = f"{int(rate_bps)}bit"
-            for command in (["qdisc", "add", "dev", dev, "root", "handle", "1:", "htb", "default", "10"],
-                            ["class", "add", "dev", dev, "parent", "1:", "classid", "1:10", "htb",
-                             "rate", rate, "ceil", rate]):
-                result = subprocess.run(["ip", "netns", "exec", ns, "tc", *command], capture_output=True,
-                                        text=True, timeout=20)
+            for command in (
+                ["qdisc", "add", "dev", dev, "root", "handle", "1:", "htb", "default", "10"],
+                [
+                    "class",
+                    "add",
+                    "dev",
+                    dev,
+                    "parent",
+                    "1:",
+                    "classid",
+                    "1:10",
+                    "htb",
+                    "rate",
+                    rate,
+                    "ceil",
+                    rate,
+                ],
+            ):
+                result = subprocess.run(
+                    ["ip", "netns", "exec", ns, "tc", *command],
+                    capture_output=True,
+                    text=True,
+                    timeout=20,
+                )
                 if result.returncode != 0:
                     raise RuntimeError(f"tc {' '.join(command)}: {result.stderr.strip()}")
 
@@ -146,7 +198,10 @@ class TwoHosts:
             if self.ns[host] not in _ip("netns", "list", check=False).stdout:
                 continue
             deadline = time.monotonic() + 10.0
-            while _ip("netns", "pids", self.ns[host], check=False).stdout.strip() and time.monotonic() < deadline:
+            while (
+                _ip("netns", "pids", self.ns[host], check=False).stdout.strip()
+                and time.monotonic() < deadline
+            ):
                 self.kill_namespace_processes(host)
                 time.sleep(0.2)
             _ip("netns", "del", self.ns[host], check=False)

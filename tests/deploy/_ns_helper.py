@@ -1,10 +1,10 @@
 """Bus helpers the deployment tests run inside a host's namespace (the test process itself is outside).
 
-    python _ns_helper.py wait-ready --zenoh CONFIG --services a,b,c --timeout 300
-        exits 0 once every service published a `running` Status, 1 on timeout (names the missing ones)
-    python _ns_helper.py watch --zenoh CONFIG
-        prints one JSON line per image, truth, detections, errors or status message it sees:
-        {"t_ns": receive wall time, "key": ..., "stamp_ns": ..., "bytes": payload size, ...} until SIGTERM
+python _ns_helper.py wait-ready --zenoh CONFIG --services a,b,c --timeout 300
+    exits 0 once every service published a `running` Status, 1 on timeout (names the missing ones)
+python _ns_helper.py watch --zenoh CONFIG
+    prints one JSON line per image, truth, detections, errors or status message it sees:
+    {"t_ns": receive wall time, "key": ..., "stamp_ns": ..., "bytes": payload size, ...} until SIGTERM
 """
 
 from __future__ import annotations
@@ -58,9 +58,17 @@ def watch(args: argparse.Namespace) -> int:
             print(json.dumps(event), flush=True)
 
     uav = args.uav
-    subs = [session.declare_subscriber(k, on_sample) for k in
-            (f"atr/{uav}/camera/image", f"sim/{uav}/truth", f"atr/{uav}/detections", f"atr/{uav}/*/errors",
-             f"atr/{uav}/*/status", f"atr/{uav}/sfm/cloud")]
+    subs = [
+        session.declare_subscriber(k, on_sample)
+        for k in (
+            f"atr/{uav}/camera/image",
+            f"sim/{uav}/truth",
+            f"atr/{uav}/detections",
+            f"atr/{uav}/*/errors",
+            f"atr/{uav}/*/status",
+            f"atr/{uav}/sfm/cloud",
+        )
+    ]
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())

@@ -57,7 +57,9 @@ class Inbox:
 @pytest.fixture(scope="module")
 def deployment(tmp_path_factory: pytest.TempPathFactory) -> Deployment:
     port, air_port = free_port(), free_port()
-    return make_deployment(tmp_path_factory.mktemp("deploy"), ground="127.0.0.1", port=port, air_port=air_port)
+    return make_deployment(
+        tmp_path_factory.mktemp("deploy"), ground="127.0.0.1", port=port, air_port=air_port
+    )
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +73,9 @@ def bus(deployment: Deployment) -> Iterator[dict[str, Any]]:
         air = _open(_config(deployment, "split-air"))
         sessions.append(air)
         ground_inbox = Inbox(ground, "**")
-        queryable = ground.declare_queryable("atr/templates/**", lambda q: q.reply(str(q.key_expr), b"template"))
+        queryable = ground.declare_queryable(
+            "atr/templates/**", lambda q: q.reply(str(q.key_expr), b"template")
+        )
         deadline = time.monotonic() + 20
         while not air.info.routers_zid() and time.monotonic() < deadline:
             time.sleep(0.1)
@@ -84,26 +88,53 @@ def bus(deployment: Deployment) -> Iterator[dict[str, Any]]:
 
 def test_certificates_chain_to_the_deployment_ca(deployment: Deployment) -> None:
     for name in ("ground-router", "ground", f"air-{UAV}"):
-        result = subprocess.run(["openssl", "verify", "-CAfile", str(deployment.cert("ca")),
-                                 str(deployment.cert(name))], capture_output=True, text=True)
+        result = subprocess.run(
+            [
+                "openssl",
+                "verify",
+                "-CAfile",
+                str(deployment.cert("ca")),
+                str(deployment.cert(name)),
+            ],
+            capture_output=True,
+            text=True,
+        )
         assert result.returncode == 0, result.stderr
-        subject = subprocess.run(["openssl", "x509", "-in", str(deployment.cert(name)), "-noout", "-subject"],
-                                 capture_output=True, text=True).stdout
+        subject = subprocess.run(
+            ["openssl", "x509", "-in", str(deployment.cert(name)), "-noout", "-subject"],
+            capture_output=True,
+            text=True,
+        ).stdout
         assert subject.strip().endswith(f"CN = {name}"), subject
         assert deployment.key(name).stat().st_mode & 0o077 == 0, f"{name}.key is readable by others"
-    text = subprocess.run(["openssl", "x509", "-in", str(deployment.cert("ground-router")), "-noout", "-ext",
-                           "subjectAltName"], capture_output=True, text=True).stdout
+    text = subprocess.run(
+        [
+            "openssl",
+            "x509",
+            "-in",
+            str(deployment.cert("ground-router")),
+            "-noout",
+            "-ext",
+            "subjectAltName",
+        ],
+        capture_output=True,
+        text=True,
+    ).stdout
     assert "IP Address:127.0.0.1" in text
 
 
-def test_client_without_credentials_cannot_connect(deployment: Deployment, bus: dict[str, Any],
-                                                   tmp_path: Path) -> None:
+def test_client_without_credentials_cannot_connect(
+    deployment: Deployment, bus: dict[str, Any], tmp_path: Path
+) -> None:
     port = deployment.port
     no_cert = _config(deployment, "split-ground")
     tls = no_cert["transport"]["link"]["tls"]
     del tls["connect_certificate"], tls["connect_private_key"]
-    plain = {"mode": "client", "connect": {"endpoints": [f"tcp/127.0.0.1:{port}"], "timeout_ms": 2000},
-             "scouting": {"multicast": {"enabled": False}}}
+    plain = {
+        "mode": "client",
+        "connect": {"endpoints": [f"tcp/127.0.0.1:{port}"], "timeout_ms": 2000},
+        "scouting": {"multicast": {"enabled": False}},
+    }
     # a certificate of another CA, with the right common name
     other = make_deployment(tmp_path / "other", ground="127.0.0.1", port=port)
     forged = _config(other, "split-ground")
@@ -120,10 +151,20 @@ def test_client_without_credentials_cannot_connect(deployment: Deployment, bus: 
 
 def test_air_publishes_only_its_own_sensor_keys(bus: dict[str, Any]) -> None:
     air, ground, inbox = bus["air"], bus["ground"], bus["inbox"]
-    allowed = [f"atr/{UAV}/imu", f"atr/{UAV}/sfm/cloud", f"atr/{UAV}/pose/relative", f"sim/{UAV}/truth",
-               f"atr/{UAV}/sfm/status"]
-    denied = [f"atr/{UAV}/detections", "atr/uav2/imu", f"atr/{UAV}/atr_matcher/status",
-              "atr/templates/t72/shot", "elsewhere/key"]
+    allowed = [
+        f"atr/{UAV}/imu",
+        f"atr/{UAV}/sfm/cloud",
+        f"atr/{UAV}/pose/relative",
+        f"sim/{UAV}/truth",
+        f"atr/{UAV}/sfm/status",
+    ]
+    denied = [
+        f"atr/{UAV}/detections",
+        "atr/uav2/imu",
+        f"atr/{UAV}/atr_matcher/status",
+        "atr/templates/t72/shot",
+        "elsewhere/key",
+    ]
     for key in allowed + denied:
         air.put(key, b"from-air")
     ground.put(f"atr/{UAV}/detections", b"from-ground")
@@ -148,13 +189,17 @@ def test_camera_images_stay_on_the_air(bus: dict[str, Any]) -> None:
     deadline = time.monotonic() + 5
     while (f"atr/{UAV}/imu", b"after-image") not in inbox.items and time.monotonic() < deadline:
         time.sleep(0.1)
-    assert local.keys() == {f"atr/{UAV}/camera/image"}, "the air's own subscriber did not get the image"
+    assert local.keys() == {f"atr/{UAV}/camera/image"}, (
+        "the air's own subscriber did not get the image"
+    )
     assert f"atr/{UAV}/camera/image" not in inbox.keys(), "a camera image crossed to the ground"
 
 
 def test_air_may_query_templates_and_receive_detections(bus: dict[str, Any]) -> None:
     air, ground = bus["air"], bus["ground"]
-    replies = [r.ok.payload.to_bytes() for r in air.get("atr/templates/t72/shot", timeout=5) if r.ok]
+    replies = [
+        r.ok.payload.to_bytes() for r in air.get("atr/templates/t72/shot", timeout=5) if r.ok
+    ]
     assert replies == [b"template"]
     inbox = Inbox(air, f"atr/{UAV}/detections")
     time.sleep(0.5)

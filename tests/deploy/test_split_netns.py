@@ -44,13 +44,25 @@ PY = sys.executable
 UAV = "uav1"
 LINK_PORT = 7000  # the emulator, in the ground namespace, in front of the ground router (7447)
 # Small and quick, the same physics: a 640x480 camera with half the focal length, one target template.
-SETTINGS = ["--set", "sim.width_px=640", "--set", "sim.height_px=480", "--set", "sim.focal_px=1000",
-            "--set", "pipeline.targets=[t72]"]
+SETTINGS = [
+    "--set",
+    "sim.width_px=640",
+    "--set",
+    "sim.height_px=480",
+    "--set",
+    "sim.focal_px=1000",
+    "--set",
+    "pipeline.targets=[t72]",
+]
 GROUND_SERVICES = ["recorder", "template_store", "atr_matcher"]
 AIR_SERVICES = ["pose_integrator", "sfm"]
 # Keys published on the ground: everything else in the ground recording crossed the radio link.
-GROUND_KEYS = (f"atr/{UAV}/detections", f"atr/{UAV}/atr_matcher/", f"atr/{UAV}/template_store/",
-               f"atr/{UAV}/recorder/")
+GROUND_KEYS = (
+    f"atr/{UAV}/detections",
+    f"atr/{UAV}/atr_matcher/",
+    f"atr/{UAV}/template_store/",
+    f"atr/{UAV}/recorder/",
+)
 
 
 def _env() -> dict[str, str]:
@@ -68,9 +80,15 @@ class Watch:
     def __init__(self, hosts: TwoHosts, config: Path) -> None:
         self.events: list[dict[str, Any]] = []
         self._lock = threading.Lock()
-        self._proc = hosts.start("air", [PY, str(HERE / "_ns_helper.py"), "watch", "--zenoh", str(config)],
-                                 env=_env(), cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                 text=True)
+        self._proc = hosts.start(
+            "air",
+            [PY, str(HERE / "_ns_helper.py"), "watch", "--zenoh", str(config)],
+            env=_env(),
+            cwd=REPO,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+        )
         self._ready = threading.Event()
         threading.Thread(target=self._read, daemon=True).start()
         if not self._ready.wait(60):
@@ -112,10 +130,27 @@ class Link:
             self.hosts.stop(self.proc)
         self.stats_path.unlink(missing_ok=True)
         self.proc = self.hosts.start(
-            "ground", [PY, str(HERE / "_link_emulator.py"), "--listen", f"{GROUND_IP}:{LINK_PORT}",
-                       "--to", "127.0.0.1:7447", "--delay-ms", str(delay_ms), "--loss", str(loss),
-                       "--seed", str(seed), "--stats", str(self.stats_path)],
-            env=_env(), stdout=subprocess.PIPE, text=True)
+            "ground",
+            [
+                PY,
+                str(HERE / "_link_emulator.py"),
+                "--listen",
+                f"{GROUND_IP}:{LINK_PORT}",
+                "--to",
+                "127.0.0.1:7447",
+                "--delay-ms",
+                str(delay_ms),
+                "--loss",
+                str(loss),
+                "--seed",
+                str(seed),
+                "--stats",
+                str(self.stats_path),
+            ],
+            env=_env(),
+            stdout=subprocess.PIPE,
+            text=True,
+        )
         line = self.proc.stdout.readline()
         assert line.startswith("ready"), f"link emulator did not start: {line!r}"
 
@@ -138,19 +173,51 @@ class Split:
 
     def wait_ready(self, timeout_s: float = 300.0) -> None:
         services = ",".join(GROUND_SERVICES + AIR_SERVICES)
-        self.hosts.run("air", [PY, str(HERE / "_ns_helper.py"), "wait-ready", "--zenoh",
-                               str(self.deploy.zenoh("split-air")), "--services", services,
-                               "--timeout", str(timeout_s)], timeout_s=timeout_s + 30)
+        self.hosts.run(
+            "air",
+            [
+                PY,
+                str(HERE / "_ns_helper.py"),
+                "wait-ready",
+                "--zenoh",
+                str(self.deploy.zenoh("split-air")),
+                "--services",
+                services,
+                "--timeout",
+                str(timeout_s),
+            ],
+            timeout_s=timeout_s + 30,
+        )
 
-    def fly(self, frames: int, answer_timeout_s: float = 60.0, seed: int = 0,
-            during: Any = None) -> tuple[int, int, int]:
+    def fly(
+        self, frames: int, answer_timeout_s: float = 60.0, seed: int = 0, during: Any = None
+    ) -> tuple[int, int, int]:
         """Fly `frames` frames from the air; (start, end) wall times in ns and the source's exit code."""
         start = time.time_ns()
         env = _env() | {"ATR_ZENOH_CONFIG": str(self.deploy.zenoh("split-air"))}
         source = self.hosts.start(
-            "air", [PY, "-m", "cli.main", "service", "sensor_source", "--frames", str(frames), "--seed", str(seed),
-                    "--pace", "lock-step", "--answer-timeout", str(answer_timeout_s), *SETTINGS],
-            env=env, cwd=REPO, stdout=(self.folder / "source.log").open("ab"), stderr=subprocess.STDOUT)
+            "air",
+            [
+                PY,
+                "-m",
+                "cli.main",
+                "service",
+                "sensor_source",
+                "--frames",
+                str(frames),
+                "--seed",
+                str(seed),
+                "--pace",
+                "lock-step",
+                "--answer-timeout",
+                str(answer_timeout_s),
+                *SETTINGS,
+            ],
+            env=env,
+            cwd=REPO,
+            stdout=(self.folder / "source.log").open("ab"),
+            stderr=subprocess.STDOUT,
+        )
         if during is not None:
             during()
         code = source.wait(timeout=frames * (answer_timeout_s + 30))
@@ -164,9 +231,11 @@ class Split:
         shutil.copyfile(self.recording, snapshot)
         recover(snapshot, readable)
         with readable.open("rb") as stream:
-            return [(c.topic, m.log_time, m.data)
-                    for _, c, m in make_reader(stream).iter_messages(log_time_order=True)
-                    if start_ns <= m.log_time <= end_ns]
+            return [
+                (c.topic, m.log_time, m.data)
+                for _, c, m in make_reader(stream).iter_messages(log_time_order=True)
+                if start_ns <= m.log_time <= end_ns
+            ]
 
 
 @pytest.fixture(scope="module")
@@ -185,17 +254,41 @@ def split(tmp_path_factory: pytest.TempPathFactory) -> Split:
         link = Link(hosts, folder)
         link.start()
         common = ["--var", f"deploy={deploy.root}", *SETTINGS]
-        ground = hosts.start("ground", [PY, "-m", "cli.main", "up", "split", "--host", "ground",
-                                        "--var", f"out={recording}", *common],
-                             env=_env(), cwd=REPO, stdout=(folder / "ground.log").open("wb"),
-                             stderr=subprocess.STDOUT)
-        air = hosts.start("air", [PY, "-m", "cli.main", "up", "split", "--host", "air", "--no-source", *common],
-                          env=_env(), cwd=REPO, stdout=(folder / "air.log").open("wb"), stderr=subprocess.STDOUT)
+        ground = hosts.start(
+            "ground",
+            [
+                PY,
+                "-m",
+                "cli.main",
+                "up",
+                "split",
+                "--host",
+                "ground",
+                "--var",
+                f"out={recording}",
+                *common,
+            ],
+            env=_env(),
+            cwd=REPO,
+            stdout=(folder / "ground.log").open("wb"),
+            stderr=subprocess.STDOUT,
+        )
+        air = hosts.start(
+            "air",
+            [PY, "-m", "cli.main", "up", "split", "--host", "air", "--no-source", *common],
+            env=_env(),
+            cwd=REPO,
+            stdout=(folder / "air.log").open("wb"),
+            stderr=subprocess.STDOUT,
+        )
         watch = Watch(hosts, deploy.zenoh("split-air"))
         result = Split(hosts, deploy, link, ground, air, watch, folder, recording)
         result.wait_ready()
         yield result
-        for proc in (air, ground):  # SIGTERM: the launcher stops its services, the recorder closes its file
+        for proc in (
+            air,
+            ground,
+        ):  # SIGTERM: the launcher stops its services, the recorder closes its file
             hosts.stop(proc, timeout_s=30)
         print("\nsplit figures:", json.dumps(result.figures, indent=1))
 
@@ -225,8 +318,14 @@ def _latencies_ms(events: list[dict[str, Any]]) -> list[float]:
     return [(answers[s] - images[s]) / 1e6 for s in images if s in answers]
 
 
-def _flight_figures(split: Split, start: int, end: int, frames: int, link_before: dict[str, Any],
-                    veth_before: dict[str, int]) -> dict[str, Any]:
+def _flight_figures(
+    split: Split,
+    start: int,
+    end: int,
+    frames: int,
+    link_before: dict[str, Any],
+    veth_before: dict[str, int],
+) -> dict[str, Any]:
     records = split.recorded(start, end)
     link_after, veth_after = split.link.stats(), split.hosts.link_bytes()
     events = split.watch.since(start)
@@ -237,14 +336,19 @@ def _flight_figures(split: Split, start: int, end: int, frames: int, link_before
     images = [e["bytes"] for e in events if e["key"] == keys.image(UAV)]
     latencies = _latencies_ms(events)
     return {
-        "frames": frames, "seconds": round(seconds, 1),
-        "link_up_bytes": up, "link_down_bytes": down,
-        "link_up_Bps": round(up / seconds), "link_down_Bps": round(down / seconds),
+        "frames": frames,
+        "seconds": round(seconds, 1),
+        "link_up_bytes": up,
+        "link_down_bytes": down,
+        "link_up_Bps": round(up / seconds),
+        "link_down_Bps": round(down / seconds),
         "link_up_bytes_per_frame": round(up / frames),
         "veth_air_tx_bytes": veth_after["air"] - veth_before["air"],
         "veth_ground_tx_bytes": veth_after["ground"] - veth_before["ground"],
         "lost_segments_up": link_after.get("lost_up", 0) - link_before.get("lost_up", 0),
-        "payload_bytes_per_frame_by_key": {k: round(v / frames) for k, v in sorted(crossing.items())},
+        "payload_bytes_per_frame_by_key": {
+            k: round(v / frames) for k, v in sorted(crossing.items())
+        },
         "image_bytes_per_frame_kept_on_air": round(sum(images) / max(1, len(images))),
         "latency_ms_median": round(median(latencies), 1) if latencies else None,
         "latency_ms_max": round(max(latencies), 1) if latencies else None,
@@ -257,7 +361,9 @@ def _check_complete(figures: dict[str, Any], frames: int) -> None:
     assert len(recorded) == frames, f"{len(recorded)} frames recorded on the ground, {frames} flown"
     for stamp, per_key in recorded.items():
         assert keys.truth(UAV) in per_key, f"frame {stamp}: no truth reached the ground"
-        assert keys.detections(UAV) in per_key, f"frame {stamp}: no Detections in the ground recording"
+        assert keys.detections(UAV) in per_key, (
+            f"frame {stamp}: no Detections in the ground recording"
+        )
     topics = {t for t, _, _ in figures["records"]}
     assert keys.image(UAV) not in topics, "camera images crossed the radio link"
     for key in (keys.imu(UAV), keys.relative_pose(UAV), keys.sfm_cloud(UAV)):
@@ -318,8 +424,13 @@ def test_ground_router_restart_mid_flight(split: Split) -> None:
     outage: dict[str, int] = {}
 
     def restart_router() -> None:
-        answered = split.watch.wait_for(lambda events: sum(
-            1 for e in events if e["key"] == keys.detections(UAV) and e["t_ns"] >= start) >= 2, 300)
+        answered = split.watch.wait_for(
+            lambda events: (
+                sum(1 for e in events if e["key"] == keys.detections(UAV) and e["t_ns"] >= start)
+                >= 2
+            ),
+            300,
+        )
         assert answered, "no two frames answered before the restart"
         router = _child_pid(split.ground.pid, "router")
         outage["killed_ns"] = time.time_ns()
@@ -332,17 +443,33 @@ def test_ground_router_restart_mid_flight(split: Split) -> None:
     assert len(images) == frames
     records = split.recorded(first, end)
     answered = {s for s, per_key in _frames(records).items() if keys.detections(UAV) in per_key}
-    lost = {e.get("input_stamp_ns") for e in events if e["key"] == f"atr/{UAV}/sensor_source/errors"}
-    assert set(images) <= answered | lost, f"frames neither answered nor reported lost: {set(images) - answered - lost}"
+    lost = {
+        e.get("input_stamp_ns") for e in events if e["key"] == f"atr/{UAV}/sensor_source/errors"
+    }
+    assert set(images) <= answered | lost, (
+        f"frames neither answered nor reported lost: {set(images) - answered - lost}"
+    )
     assert images[-1] in answered, "the pipeline did not resume after the router restart"
-    statuses = [e for e in events if e["key"] == f"atr/{UAV}/sensor_source/status" and e.get("counters")]
+    statuses = [
+        e for e in events if e["key"] == f"atr/{UAV}/sensor_source/status" and e.get("counters")
+    ]
     assert statuses and statuses[-1]["counters"]["errors"] >= len(lost & set(images))
     recorder_errors = [codec.unpack(d) for t, _, d in records if t == f"atr/{UAV}/recorder/errors"]
-    resumed = min((e["t_ns"] for e in events if e["key"] == keys.detections(UAV) and e["t_ns"] > outage["killed_ns"]),
-                  default=None)
+    resumed = min(
+        (
+            e["t_ns"]
+            for e in events
+            if e["key"] == keys.detections(UAV) and e["t_ns"] > outage["killed_ns"]
+        ),
+        default=None,
+    )
     split.figures["restart"] = {
-        "frames": frames, "answered": len(answered & set(images)), "reported_lost": len(lost & set(images)),
+        "frames": frames,
+        "answered": len(answered & set(images)),
+        "reported_lost": len(lost & set(images)),
         "sensor_source_error_count": statuses[-1]["counters"]["errors"],
         "recorder_gap_reports": [e["reason"] for e in recorder_errors][:10],
-        "first_answer_after_kill_s": round((resumed - outage["killed_ns"]) / 1e9, 1) if resumed else None,
+        "first_answer_after_kill_s": round((resumed - outage["killed_ns"]) / 1e9, 1)
+        if resumed
+        else None,
     }

@@ -19,13 +19,26 @@ REPO = Path(__file__).resolve().parents[2]
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 # Small and quick, the same physics: a 640x480 camera with half the focal length, one target template.
-SETTINGS = ["--set", "sim.width_px=640", "--set", "sim.height_px=480", "--set", "sim.focal_px=1000",
-            "--set", "pipeline.targets=[t72]"]
+SETTINGS = [
+    "--set",
+    "sim.width_px=640",
+    "--set",
+    "sim.height_px=480",
+    "--set",
+    "sim.focal_px=1000",
+    "--set",
+    "pipeline.targets=[t72]",
+]
 
 
 def atr(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
-    result = subprocess.run([sys.executable, "-m", "cli.main", *args], cwd=REPO, capture_output=True,
-                            text=True, timeout=timeout)
+    result = subprocess.run(
+        [sys.executable, "-m", "cli.main", *args],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     return result
 
@@ -58,4 +71,6 @@ def test_run_twice_gives_identical_data_messages(flight, tmp_path):
     assert len(first[keys.relative_pose("uav1")]) == 3
     assert first.keys() == second.keys()
     for topic in first:
-        assert first[topic] == second[topic], f"{topic} differs between two runs of the same recording"
+        assert first[topic] == second[topic], (
+            f"{topic} differs between two runs of the same recording"
+        )

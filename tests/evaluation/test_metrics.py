@@ -33,9 +33,11 @@ def test_boundary_is_strict():
 
 
 def test_f1_matches_equation_5():
-    scores = [score_scene(TARGET, [TARGET[0]])] * 8 + [score_scene(TARGET, [])] * 2 + [
-        score_scene([], [np.zeros(3)])
-    ]
+    scores = (
+        [score_scene(TARGET, [TARGET[0]])] * 8
+        + [score_scene(TARGET, [])] * 2
+        + [score_scene([], [np.zeros(3)])]
+    )
     counts = count(scores)
     assert counts == Counts(tp=8, fp=1, fn=2, tn=0)
     assert counts.f1 == pytest.approx(2 * 8 / (2 * 8 + 1 + 2))

@@ -12,7 +12,9 @@ def test_radius_normals_match_pcl(bun0, oracles):
     o = oracles["normals"]["radius_0.04"]
     normals = estimate_normals(bun0, radius=o["radius"])
     for point, expected in o["expected"].items():
-        np.testing.assert_allclose(normals[int(point)], expected, atol=o["tol"], err_msg=f"point {point}")
+        np.testing.assert_allclose(
+            normals[int(point)], expected, atol=o["tol"], err_msg=f"point {point}"
+        )
 
 
 @pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (100.0, 100.0, 100.0)])
@@ -23,7 +25,9 @@ def test_whole_cloud_plane_fit_matches_pcl(bun0, oracles, offset):
     normals, curvature = estimate_normals_and_curvature(bun0 + shift, k=397, viewpoint=shift)
     np.testing.assert_allclose(normals, np.broadcast_to(o["normal"], normals.shape), atol=o["tol"])
     np.testing.assert_allclose(curvature, o["curvature"], atol=o["tol"])
-    np.testing.assert_allclose(np.abs(normals[0]), oracles["normals"]["plane_all_points"]["normal_abs"], atol=1e-4)
+    np.testing.assert_allclose(
+        np.abs(normals[0]), oracles["normals"]["plane_all_points"]["normal_abs"], atol=1e-4
+    )
 
 
 def test_translated_cloud_and_viewpoint_give_same_normals(bun0):

@@ -44,7 +44,9 @@ def test_lzf_literal_and_overlapping_back_reference():
         lzf_decompress(bytes([0xE0, 0, 40]), 9)  # reference before the start
 
 
-@pytest.mark.skipif(not (SHARED / "data" / "pcl" / "milk.pcd").exists(), reason="../shared/data/pcl not present")
+@pytest.mark.skipif(
+    not (SHARED / "data" / "pcl" / "milk.pcd").exists(), reason="../shared/data/pcl not present"
+)
 @pytest.mark.parametrize("name", ["milk.pcd", "milk_cartoon_all_small_clorox.pcd"])
 def test_binary_compressed_matches_open3d(name):
     path = SHARED / "data" / "pcl" / name

@@ -20,7 +20,9 @@ def test_subset_index_list_and_half_subset_are_bit_identical(bun0, bun0_normals,
     name = case.split("-")[0]
     params = CASES[case]
     full = describe(name, bun0, bun0_normals, ALL, 0.04, **params)
-    sub = describe(name, bun0, bun0_normals, SUBSET, 0.04, **params)  # index list on the full surface
+    sub = describe(
+        name, bun0, bun0_normals, SUBSET, 0.04, **params
+    )  # index list on the full surface
     half = describe(name, bun0, bun0_normals, SUBSET[: len(SUBSET) // 2], 0.04, **params)
     np.testing.assert_array_equal(full[SUBSET], sub)
     np.testing.assert_array_equal(full[SUBSET[: len(SUBSET) // 2]], half)

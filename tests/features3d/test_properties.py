@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from atr.errors import ConfigError
-from atr.features3d import DESCRIPTOR_LENGTHS, DESCRIPTOR_NAMES, describe, estimate_normals, is_available
+from atr.features3d import (
+    DESCRIPTOR_LENGTHS,
+    DESCRIPTOR_NAMES,
+    describe,
+    estimate_normals,
+    is_available,
+)
 
 RADIUS = 0.35  # about 6x the sampling resolution of the surface below
 N_KEYPOINTS = 60
@@ -20,7 +26,12 @@ def _surface(n: int, seed: int) -> np.ndarray:
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     theta = np.arccos(u[:, 2])
     phi = np.arctan2(u[:, 1], u[:, 0])
-    r = 1.0 + 0.18 * np.sin(3 * theta) * np.cos(2 * phi) + 0.1 * np.cos(5 * theta + phi) + 0.06 * np.sin(7 * phi)
+    r = (
+        1.0
+        + 0.18 * np.sin(3 * theta) * np.cos(2 * phi)
+        + 0.1 * np.cos(5 * theta + phi)
+        + 0.06 * np.sin(7 * phi)
+    )
     return u * r[:, None]
 
 
@@ -74,7 +85,9 @@ def test_unchanged_under_rigid_transform(scene, name):
     pts, normals, kp = scene
     R, t = _rigid(3)
     a = _invariant_view(name, describe(name, pts, normals, kp, RADIUS, **_params(name)))
-    b = _invariant_view(name, describe(name, pts @ R.T + t, normals @ R.T, kp, RADIUS, **_params(name)))
+    b = _invariant_view(
+        name, describe(name, pts @ R.T + t, normals @ R.T, kp, RADIUS, **_params(name))
+    )
     rel = np.linalg.norm(a - b, axis=1) / np.maximum(np.linalg.norm(a, axis=1), 1e-12)
     assert np.mean(rel < 1e-4) >= 0.95, f"relative differences: {np.sort(rel)[-5:]}"
 
@@ -113,7 +126,9 @@ def test_too_few_neighbours_give_nan_rows(scene, name):
     keypoints = np.concatenate([kp[:3], len(pts) + np.arange(len(far))])
     desc = describe(name, cloud, cloud_normals, keypoints, RADIUS, **_params(name))
     assert np.isfinite(desc[:3]).all()
-    assert np.isnan(desc[3:]).all(axis=1).all(), "an isolated point or a 3-point neighbourhood must be NaN"
+    assert np.isnan(desc[3:]).all(axis=1).all(), (
+        "an isolated point or a 3-point neighbourhood must be NaN"
+    )
 
 
 def test_unknown_descriptor_is_a_config_error(scene):

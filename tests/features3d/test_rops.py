@@ -13,18 +13,22 @@ PCL = ROOT / ".." / "shared" / "data" / "pcl"
 REF = ROOT / "tests" / "data" / "features3d" / "pcl113_rops_rops_cloud.npy"
 RADIUS = 0.0285  # PCL's test_rops_estimation.cpp
 
-pytestmark = pytest.mark.skipif(not (PCL / "rops_cloud.pcd").exists(), reason="shared PCL RoPS data is absent")
+pytestmark = pytest.mark.skipif(
+    not (PCL / "rops_cloud.pcd").exists(), reason="shared PCL RoPS data is absent"
+)
 
 
 def random_rigid(rng):
     q = rng.normal(size=4)
     q /= np.linalg.norm(q)
     w, x, y, z = q
-    rot = np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    rot = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     return rot, rng.normal(size=3) * 0.1
 
 

@@ -13,7 +13,9 @@ def test_shot_lrf_matches_pcl(bun0, oracles):
     o = oracles["shot_lrf"]
     frames = shot_lrf(bun0, ALL, o["radius"])
     for point, expected in o["expected"].items():
-        np.testing.assert_allclose(frames[int(point)], expected, atol=o["tol"], err_msg=f"point {point}")
+        np.testing.assert_allclose(
+            frames[int(point)], expected, atol=o["tol"], err_msg=f"point {point}"
+        )
     assert np.isnan(frames[o["nan_point"]]).all()
 
 
@@ -22,7 +24,9 @@ def test_shot_lrf_is_orthonormal_and_right_handed(bun0):
     ok = np.isfinite(frames).all(axis=(1, 2))
     assert ok.sum() > 300
     f = frames[ok]
-    np.testing.assert_allclose(f @ f.transpose(0, 2, 1), np.broadcast_to(np.eye(3), f.shape), atol=1e-9)
+    np.testing.assert_allclose(
+        f @ f.transpose(0, 2, 1), np.broadcast_to(np.eye(3), f.shape), atol=1e-9
+    )
     np.testing.assert_allclose(np.linalg.det(f), 1.0, atol=1e-9)
 
 

@@ -69,8 +69,10 @@ def test_biases_are_subtracted():
     ("mutate", "match"),
     [
         (lambda t, g, a: (t[::-1].copy(), g, a), "strictly increasing"),
-        (lambda t, g, a: (t, np.where(np.arange(10)[:, None] == 4, np.nan, g), a),
-         r"gyro_radps\[4\]"),
+        (
+            lambda t, g, a: (t, np.where(np.arange(10)[:, None] == 4, np.nan, g), a),
+            r"gyro_radps\[4\]",
+        ),
         (lambda t, g, a: (t, g, a[:, :2]), "accel_mps2 must have shape"),
         (lambda t, g, a: (np.concatenate((t[:5], t[5:] + 100 * PERIOD_NS)), g, a), "gap"),
         (lambda t, g, a: (t[:0], g[:0], a[:0]), "non-empty"),

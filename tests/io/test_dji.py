@@ -18,7 +18,9 @@ from atr.io.dji import (
 
 SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"
 IMAGES = SHARED / "data" / "brighton_beach_dji" / "images"
-needs_photos = pytest.mark.skipif(not IMAGES.is_dir(), reason=f"shared DJI photos absent at {IMAGES}")
+needs_photos = pytest.mark.skipif(
+    not IMAGES.is_dir(), reason=f"shared DJI photos absent at {IMAGES}"
+)
 
 
 @needs_photos

@@ -41,8 +41,12 @@ def test_pcl_milk_carton_found_at_identity(milk, descriptor):
     # A tabletop scan, not an aerial scene: the paper's 6-NN normals and Lowe's 0.8 ratio (the defaults are
     # tuned for noisy SfM clouds, docs/recognition.md); no ground-vehicle prior (the model is a point cloud).
     cfg = RecognitionConfig(
-        resolution_m=0.01, descriptor=descriptor, k_support_radius=4.0, max_scene_keypoints=6000,
-        normal_k=6, knndr_ratio=0.8,
+        resolution_m=0.01,
+        descriptor=descriptor,
+        k_support_radius=4.0,
+        max_scene_keypoints=6000,
+        normal_k=6,
+        knndr_ratio=0.8,
     )
     tpl = template_from_points(model, "milk", descriptor, cfg, viewpoint=np.zeros(3))
     res = recognize(scene, [tpl], cfg, seed=0, viewpoint_m=np.zeros(3))
@@ -52,7 +56,15 @@ def test_pcl_milk_carton_found_at_identity(milk, descriptor):
     assert np.linalg.norm(best.T_world_target[:3, 3]) < 0.01
     assert _rotation_error_deg(best.T_world_target) < 2.0
     assert best.overlap > 0.9
-    assert set(res.stage_times_ms) >= {"subsample", "filter", "describe", "match", "group", "ransac", "icp"}
+    assert set(res.stage_times_ms) >= {
+        "subsample",
+        "filter",
+        "describe",
+        "match",
+        "group",
+        "ransac",
+        "icp",
+    }
 
 
 DESC = "shot" if have_descriptor("shot") else "fpfh"
@@ -77,7 +89,9 @@ VIEWPOINT = RANGE * np.array([np.cos(EL) * np.cos(AZ), np.cos(EL) * np.sin(AZ), 
 def _scene(vehicles, name, seed=0):
     T = syn.pose(0.0, -2.0, 0.7)
     veh = [((vehicles[name].vertices, vehicles[name].triangles), T)] if name else []
-    pts = syn.aerial_scene(veh, seed=seed, samples_per_m2=30, extent_m=15, n_clutter=4, azimuth_deg=20)
+    pts = syn.aerial_scene(
+        veh, seed=seed, samples_per_m2=30, extent_m=15, n_clutter=4, azimuth_deg=20
+    )
     return pts, T
 
 

@@ -189,7 +189,9 @@ def test_template_round_trips_through_dict_and_msgpack():
         dt, shape, raw = msgpack.unpackb(data)
         return np.frombuffer(raw, dtype=dt).reshape(shape)
 
-    back = Template.from_dict(msgpack.unpackb(msgpack.packb(t.to_dict(), default=enc), ext_hook=dec))
+    back = Template.from_dict(
+        msgpack.unpackb(msgpack.packb(t.to_dict(), default=enc), ext_hook=dec)
+    )
     for f in ("points_m", "normals", "keypoints_m", "descriptors"):
         assert np.array_equal(getattr(back, f), getattr(t, f))
     assert (back.target, back.descriptor, back.radius_m, back.params) == (
@@ -246,16 +248,32 @@ def test_upright_hough_groups_true_correspondences_and_uses_heights():
         distance=np.zeros(n_true + n_out),
     )
     groups = group_upright_hough(
-        scene, heights, model, corr, cell_m=0.9, yaw_bin_rad=math.radians(10), height_tol_m=0.45,
-        min_size=5, max_groups=5,
+        scene,
+        heights,
+        model,
+        corr,
+        cell_m=0.9,
+        yaw_bin_rad=math.radians(10),
+        height_tol_m=0.45,
+        min_size=5,
+        max_groups=5,
     )
     assert groups
     assert set(range(n_true)) <= set(groups[0].tolist())
-    assert len(groups[0]) < 3 * n_true  # 600 random outliers: the peak is mostly true correspondences
+    assert (
+        len(groups[0]) < 3 * n_true
+    )  # 600 random outliers: the peak is mostly true correspondences
     # the same correspondences with the scene lifted 1 m off the ground are height-inconsistent
     none = group_upright_hough(
-        scene, heights + 1.0, model, corr, cell_m=0.9, yaw_bin_rad=math.radians(10), height_tol_m=0.45,
-        min_size=5, max_groups=5,
+        scene,
+        heights + 1.0,
+        model,
+        corr,
+        cell_m=0.9,
+        yaw_bin_rad=math.radians(10),
+        height_tol_m=0.45,
+        min_size=5,
+        max_groups=5,
     )
     assert all(len(set(range(n_true)) & set(g.tolist())) < 5 for g in none)
 
@@ -263,7 +281,8 @@ def test_upright_hough_groups_true_correspondences_and_uses_heights():
 def test_multi_view_template_slices_and_validation():
     rng = np.random.default_rng(14)
     t = Template(
-        target="t72", descriptor="fpfh",
+        target="t72",
+        descriptor="fpfh",
         points_m=rng.normal(size=(30, 3)).astype(np.float32),
         normals=rng.normal(size=(30, 3)).astype(np.float32),
         keypoints_m=rng.normal(size=(20, 3)).astype(np.float32),

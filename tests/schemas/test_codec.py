@@ -17,30 +17,86 @@ def example(name: str) -> dict:
     T[:3, 3] = rng.normal(size=3)
     base = {"stamp_ns": 1_000_000_123, "seq": 4, "version": 1}
     bodies = {
-        "Image": {"frame_seq": 4, "encoding": "rgb8", "data": rng.integers(0, 255, (48, 64, 3), dtype=np.uint8),
-                  "K": np.array([[100.0, 0, 32], [0, 100.0, 24], [0, 0, 1]]), "distortion": np.zeros(0)},
-        "ImuBatch": {"frame_seq": 4, "t_ns": np.arange(5, dtype=np.int64) * 5_000_000,
-                     "gyro_radps": rng.normal(size=(5, 3)), "accel_mps2": rng.normal(size=(5, 3)),
-                     "init": {"T_world_imu": T, "v_world_mps": np.array([15.0, 0, 0])}},
-        "PointCloud": {"source": "sfm-gftt", "frame_seqs": [3, 4],
-                       "points_m": rng.normal(size=(100, 3)).astype(np.float32),
-                       "sigma_m": rng.random(100).astype(np.float32), "viewpoint_m": np.zeros(3)},
+        "Image": {
+            "frame_seq": 4,
+            "encoding": "rgb8",
+            "data": rng.integers(0, 255, (48, 64, 3), dtype=np.uint8),
+            "K": np.array([[100.0, 0, 32], [0, 100.0, 24], [0, 0, 1]]),
+            "distortion": np.zeros(0),
+        },
+        "ImuBatch": {
+            "frame_seq": 4,
+            "t_ns": np.arange(5, dtype=np.int64) * 5_000_000,
+            "gyro_radps": rng.normal(size=(5, 3)),
+            "accel_mps2": rng.normal(size=(5, 3)),
+            "init": {"T_world_imu": T, "v_world_mps": np.array([15.0, 0, 0])},
+        },
+        "PointCloud": {
+            "source": "sfm-gftt",
+            "frame_seqs": [3, 4],
+            "points_m": rng.normal(size=(100, 3)).astype(np.float32),
+            "sigma_m": rng.random(100).astype(np.float32),
+            "viewpoint_m": np.zeros(3),
+        },
         "CameraPose": {"frame_seq": 4, "T_world_cam": T, "integration": "strapdown"},
-        "RelativePose": {"frame_seq_t": 3, "frame_seq_t1": 4, "stamp_ns_t": 1, "T_camt1_camt": T,
-                         "T_world_cam_t": T, "T_world_cam_t1": T},
-        "Detections": {"cloud_seq": 4, "frame_seqs": [3, 4], "source": "sfm-gftt", "detections": [
-            {"target": "t72", "descriptor": "shot", "T_world_target": T, "score": 0.7, "overlap": 0.8,
-             "inliers": 12}]},
-        "Template": {"target": "t72", "descriptor": "fpfh", "cache_key": "abc", "radius_m": 1.5,
-                     "resolution_m": 0.3, "points_m": rng.normal(size=(50, 3)).astype(np.float32),
-                     "normals": rng.normal(size=(50, 3)).astype(np.float32),
-                     "keypoints_m": rng.normal(size=(20, 3)).astype(np.float32),
-                     "descriptors": rng.random((20, 33)).astype(np.float32), "params": {"views": 1}},
-        "Truth": {"frame_seq": 4, "T_world_cam": T, "scenario": 1, "run": 3, "seed": 0,
-                  "targets": [{"name": "t72", "T_world_target": T, "visible_fraction": 0.9}]},
-        "Status": {"service": "sfm", "state": "running", "counters": {"received": 3}, "uptime_s": 1.5},
-        "ErrorReport": {"service": "sfm", "key": "atr/uav1/imu", "error_type": "SchemaError",
-                        "reason": "bad", "input_seq": None, "input_stamp_ns": None, "count": 1},
+        "RelativePose": {
+            "frame_seq_t": 3,
+            "frame_seq_t1": 4,
+            "stamp_ns_t": 1,
+            "T_camt1_camt": T,
+            "T_world_cam_t": T,
+            "T_world_cam_t1": T,
+        },
+        "Detections": {
+            "cloud_seq": 4,
+            "frame_seqs": [3, 4],
+            "source": "sfm-gftt",
+            "detections": [
+                {
+                    "target": "t72",
+                    "descriptor": "shot",
+                    "T_world_target": T,
+                    "score": 0.7,
+                    "overlap": 0.8,
+                    "inliers": 12,
+                }
+            ],
+        },
+        "Template": {
+            "target": "t72",
+            "descriptor": "fpfh",
+            "cache_key": "abc",
+            "radius_m": 1.5,
+            "resolution_m": 0.3,
+            "points_m": rng.normal(size=(50, 3)).astype(np.float32),
+            "normals": rng.normal(size=(50, 3)).astype(np.float32),
+            "keypoints_m": rng.normal(size=(20, 3)).astype(np.float32),
+            "descriptors": rng.random((20, 33)).astype(np.float32),
+            "params": {"views": 1},
+        },
+        "Truth": {
+            "frame_seq": 4,
+            "T_world_cam": T,
+            "scenario": 1,
+            "run": 3,
+            "seed": 0,
+            "targets": [{"name": "t72", "T_world_target": T, "visible_fraction": 0.9}],
+        },
+        "Status": {
+            "service": "sfm",
+            "state": "running",
+            "counters": {"received": 3},
+            "uptime_s": 1.5,
+        },
+        "ErrorReport": {
+            "service": "sfm",
+            "key": "atr/uav1/imu",
+            "error_type": "SchemaError",
+            "reason": "bad",
+            "input_seq": None,
+            "input_stamp_ns": None,
+            "count": 1,
+        },
         "Timing": {"service": "sfm", "input_seq": 4, "stages_ms": {"klt": 3.5}, "total_ms": 3.5},
     }
     return base | bodies[name]
@@ -65,8 +121,19 @@ def assert_same(a: object, b: object) -> None:
 def test_every_schema_is_covered_and_valid_json_schema():
     import jsonschema
 
-    assert set(schemas.names()) == {"CameraPose", "Detections", "ErrorReport", "Image", "ImuBatch",
-                                    "PointCloud", "RelativePose", "Status", "Template", "Timing", "Truth"}
+    assert set(schemas.names()) == {
+        "CameraPose",
+        "Detections",
+        "ErrorReport",
+        "Image",
+        "ImuBatch",
+        "PointCloud",
+        "RelativePose",
+        "Status",
+        "Template",
+        "Timing",
+        "Truth",
+    }
     for name in schemas.names():
         jsonschema.Draft202012Validator.check_schema(schemas.load(name))
         assert schemas.load(name)["description"]
@@ -103,7 +170,9 @@ def test_decoded_arrays_are_read_only_views():
     assert not decoded["data"].flags.writeable
 
 
-@pytest.mark.parametrize("payload", [b"", b"\xc1", b"\x92\x01", b"\x81\xa1a\xc7\x03\x01abc", b"\x81\xa1a\xc7\x01\x07x"])
+@pytest.mark.parametrize(
+    "payload", [b"", b"\xc1", b"\x92\x01", b"\x81\xa1a\xc7\x03\x01abc", b"\x81\xa1a\xc7\x01\x07x"]
+)
 def test_garbage_bytes_raise_schema_error(payload):
     with pytest.raises(SchemaError):
         codec.decode("ImuBatch", payload)
@@ -141,9 +210,13 @@ def test_oversized_payload_is_refused_before_decoding():
 
 @pytest.mark.parametrize(
     ("key", "type_name"),
-    [("atr/uav1/camera/image", "Image"), ("atr/uav7/sfm/cloud", "PointCloud"),
-     ("atr/templates/t72/hod-s", "Template"), ("atr/uav1/sfm/errors", "ErrorReport"),
-     ("sim/uav1/truth", "Truth")],
+    [
+        ("atr/uav1/camera/image", "Image"),
+        ("atr/uav7/sfm/cloud", "PointCloud"),
+        ("atr/templates/t72/hod-s", "Template"),
+        ("atr/uav1/sfm/errors", "ErrorReport"),
+        ("sim/uav1/truth", "Truth"),
+    ],
 )
 def test_key_table(key, type_name):
     assert keys.message_type(key) == type_name

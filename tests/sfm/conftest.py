@@ -4,8 +4,8 @@ with exact poses. (pytest runs in importlib mode: tests reach these through fixt
 from __future__ import annotations
 
 from dataclasses import dataclass
-from types import SimpleNamespace
 from pathlib import Path
+from types import SimpleNamespace
 
 import cv2
 import numpy as np

@@ -13,7 +13,9 @@ from atr.sfm import SfmConfig, gftt_klt_correspondences, reconstruct, surf_corre
 def pair(geo) -> tuple[np.ndarray, np.ndarray]:
     """Two oblique views 50 m above the plane, 4 m apart, slightly rotated."""
     T_a = geo.pose(geo.R_WORLD_NADIR @ geo.rot_x(0.25), np.array([0.0, 0.0, 50.0]))
-    T_b = geo.pose(geo.rot_z(0.03) @ geo.R_WORLD_NADIR @ geo.rot_x(0.22), np.array([4.0, 0.5, 50.3]))
+    T_b = geo.pose(
+        geo.rot_z(0.03) @ geo.R_WORLD_NADIR @ geo.rot_x(0.22), np.array([4.0, 0.5, 50.3])
+    )
     return T_a, T_b
 
 
@@ -69,14 +71,18 @@ def test_reconstruct_is_deterministic(pair, plane_scene) -> None:
 
 @pytest.mark.parametrize("matcher", ["gftt", "surf"])
 @pytest.mark.parametrize("fill", [0, 128])
-def test_black_or_featureless_image_gives_empty_cloud(pair, plane_scene, matcher: str, fill: int) -> None:
+def test_black_or_featureless_image_gives_empty_cloud(
+    pair, plane_scene, matcher: str, fill: int
+) -> None:
     T_a, T_b = pair
     flat = np.full((480, 640), fill, np.uint8)
-    cloud = reconstruct(flat, plane_scene.render(T_b), plane_scene.K, T_a, T_b,
-                        SfmConfig(matcher=matcher))
+    cloud = reconstruct(
+        flat, plane_scene.render(T_b), plane_scene.K, T_a, T_b, SfmConfig(matcher=matcher)
+    )
     assert len(cloud) == 0 and cloud.reason
-    cloud = reconstruct(plane_scene.render(T_a), flat, plane_scene.K, T_a, T_b,
-                        SfmConfig(matcher=matcher))
+    cloud = reconstruct(
+        plane_scene.render(T_a), flat, plane_scene.K, T_a, T_b, SfmConfig(matcher=matcher)
+    )
     assert len(cloud) == 0 and cloud.reason
 
 

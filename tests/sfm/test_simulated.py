@@ -49,7 +49,11 @@ def flight(request):
 def test_points_lie_on_the_true_surface(flight, matcher: str) -> None:
     range_m, world, frame_a, frame_b, bound = flight
     cloud = reconstruct(
-        frame_a.image, frame_b.image, frame_a.K, frame_a.T_world_cam, frame_b.T_world_cam,
+        frame_a.image,
+        frame_b.image,
+        frame_a.K,
+        frame_a.T_world_cam,
+        frame_b.T_world_cam,
         SfmConfig(matcher=matcher),
     )
     assert cloud.reason == ""

@@ -83,7 +83,9 @@ def test_repeatability_under_rotation_is_comparable_to_sift(plane_scene) -> None
 def test_flat_image_has_no_keypoints_and_bad_images_raise() -> None:
     kp, desc = Surf().detect_and_compute(np.zeros((120, 160), np.float32))
     assert kp.shape == (0, 4) and desc.shape == (0, 64)
-    tiny_kp, _ = Surf().detect_and_compute(np.random.default_rng(0).random((8, 8)).astype(np.float32))
+    tiny_kp, _ = Surf().detect_and_compute(
+        np.random.default_rng(0).random((8, 8)).astype(np.float32)
+    )
     assert tiny_kp.shape == (0, 4)  # smaller than the first filter: no octave fits
     with pytest.raises(InputError, match="2-D"):
         Surf().detect_and_compute(np.zeros((4, 4, 3), np.float32))

@@ -22,7 +22,9 @@ def project(points_world: np.ndarray, T_world_cam: np.ndarray) -> np.ndarray:
 def cams(geo) -> tuple[np.ndarray, np.ndarray]:
     """Two oblique cameras ~50 m above the ground, 6 m apart, slightly rotated."""
     T_a = geo.pose(geo.R_WORLD_NADIR @ geo.rot_x(0.2), np.array([0.0, 0.0, 50.0]))
-    T_b = geo.pose(geo.rot_z(0.05) @ geo.R_WORLD_NADIR @ geo.rot_x(0.18), np.array([6.0, 1.0, 50.5]))
+    T_b = geo.pose(
+        geo.rot_z(0.05) @ geo.R_WORLD_NADIR @ geo.rot_x(0.18), np.array([6.0, 1.0, 50.5])
+    )
     return T_a, T_b
 
 
@@ -58,8 +60,9 @@ def test_sigma_matches_monte_carlo_spread(cams) -> None:
     for _ in range(60):
         pa = project(X, T_a) + rng.normal(0.0, config.pixel_sigma_px, (len(X), 2))
         pb = project(X, T_b) + rng.normal(0.0, config.pixel_sigma_px, (len(X), 2))
-        cloud = triangulate_known_pose(pa, pb, K, T_a, T_b, SfmConfig(max_relative_sigma=1.0,
-                                                                      k_max_reprojection=100.0))
+        cloud = triangulate_known_pose(
+            pa, pb, K, T_a, T_b, SfmConfig(max_relative_sigma=1.0, k_max_reprojection=100.0)
+        )
         assert len(cloud) == len(X)
         errors.append(np.linalg.norm(cloud.points_world_m - X, axis=1))
         sigma = cloud.sigma_m

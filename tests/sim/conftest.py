@@ -7,8 +7,8 @@ import pytest
 
 from atr.sim import SimConfig, build_world, scenario
 from atr.sim.mesh import Mesh, box, merge, pose, rot_z
-from atr.sim.trajectory import make_orbit
 from atr.sim.scenarios import custom_scenario
+from atr.sim.trajectory import make_orbit
 from atr.sim.vehicles import t72
 from atr.sim.world import World
 
@@ -30,11 +30,18 @@ def toy_world(static_parts: list[Mesh], cfg: SimConfig, target: Mesh | None = No
     tl = target if target is not None else t72()
     T = pose(rot_z(0.0), (0.0, 0.0, 0.0))
     orbit = make_orbit(custom_scenario(50.0, 30.0, 4), np.zeros(3), np.random.default_rng(0), cfg)
-    return World(seed=1, static=merge([ground] + static_parts), target=tl.transformed(T),
-                 target_name="t72", T_world_target=T, target_local=tl,
-                 ground_rects=np.zeros((0, 8)),
-                 sun_dir=np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93]), orbit=orbit,
-                 occluder_width_m=0.0)
+    return World(
+        seed=1,
+        static=merge([ground] + static_parts),
+        target=tl.transformed(T),
+        target_name="t72",
+        T_world_target=T,
+        target_local=tl,
+        ground_rects=np.zeros((0, 8)),
+        sun_dir=np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93]),
+        orbit=orbit,
+        occluder_width_m=0.0,
+    )
 
 
 def look_at(eye, target) -> np.ndarray:

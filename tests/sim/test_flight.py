@@ -15,10 +15,14 @@ def _frames(cfg, seed, **kw):
 def _sig(frames):
     parts = []
     for f in frames:
-        parts += [f.image.tobytes(), f.imu_t_ns.tobytes(), f.gyro_radps.tobytes(),
-                  f.accel_mps2.tobytes(),
-                  f.T_world_cam.tobytes(),
-                  f.lidar_points_m.tobytes() if f.lidar_points_m is not None else b""]
+        parts += [
+            f.image.tobytes(),
+            f.imu_t_ns.tobytes(),
+            f.gyro_radps.tobytes(),
+            f.accel_mps2.tobytes(),
+            f.T_world_cam.tobytes(),
+            f.lidar_points_m.tobytes() if f.lidar_points_m is not None else b"",
+        ]
         parts += [t.T_world_target.tobytes() + repr(t.visible_fraction).encode() for t in f.targets]
     return b"".join(parts)
 
@@ -30,7 +34,8 @@ def test_same_seed_identical_bytes_different_seed_different_world(small_cfg, wor
     other = build_world(scenario(1, 3), 1, config=small_cfg)
     assert not np.allclose(other.T_world_target, world_s1r3.T_world_target)
     assert other.static.n_triangles != world_s1r3.static.n_triangles or not np.array_equal(
-        other.static.vertices, world_s1r3.static.vertices)
+        other.static.vertices, world_s1r3.static.vertices
+    )
     c = _frames(small_cfg, 1, world=other)
     assert c[0].image.tobytes() != a[0].image.tobytes()
 
@@ -58,8 +63,11 @@ def test_target_mesh_file_appears_in_frame_and_truth(small_cfg, tmp_path):
     save_mesh(truck_6x6(), path)
     mesh = load_mesh(path)
     sc = custom_scenario(50.0, 30.0, n_scenes=1)
-    f = next(simulate_flight(sc, seed=4, frames=1, config=small_cfg, target_mesh=mesh,
-                             target_name="truck"))
+    f = next(
+        simulate_flight(
+            sc, seed=4, frames=1, config=small_cfg, target_mesh=mesh, target_name="truck"
+        )
+    )
     assert [t.name for t in f.targets] == ["truck"]
     assert f.targets[0].visible_fraction > 0.8
     T = f.targets[0].T_world_target
@@ -70,8 +78,8 @@ def test_target_mesh_file_appears_in_frame_and_truth(small_cfg, tmp_path):
     # a loaded mesh gets the default material: the pixels at the truck differ from the ground around
     # it
     r = 4
-    patch = f.image[int(v) - r:int(v) + r, int(u) - r:int(u) + r].reshape(-1, 3).mean(axis=0)
-    ring = f.image[int(v) - 30:int(v) + 30, int(u) - 30:int(u) + 30].reshape(-1, 3).mean(axis=0)
+    patch = f.image[int(v) - r : int(v) + r, int(u) - r : int(u) + r].reshape(-1, 3).mean(axis=0)
+    ring = f.image[int(v) - 30 : int(v) + 30, int(u) - 30 : int(u) + 30].reshape(-1, 3).mean(axis=0)
     assert np.abs(patch - ring).max() > 3.0
 
 

@@ -17,13 +17,15 @@ def _rot_err_deg(Ra, Rb):
 @pytest.mark.parametrize("number,run", [(1, 1), (1, 4), (2, 2), (3, 1)])
 def test_noise_free_imu_integrates_to_true_pose_over_2s(number, run):
     cfg = SimConfig()
-    orbit = make_orbit(scenario(number, run), np.array([3.0, -2.0, 0.0]), np.random.default_rng(7),
-                       cfg)
+    orbit = make_orbit(
+        scenario(number, run), np.array([3.0, -2.0, 0.0]), np.random.default_rng(7), cfg
+    )
     t = np.arange(0, int(2.0 * cfg.imu_rate_hz) + 1) / cfg.imu_rate_hz
     imu = imu_samples(orbit, t, cfg, rng=None)
     st0 = orbit.state(t[:1])
-    state = NavState(STAMP0_NS, st0.R_world_imu[0], st0.p_world[0], st0.v_world[0], np.zeros(3),
-                     np.zeros(3))
+    state = NavState(
+        STAMP0_NS, st0.R_world_imu[0], st0.p_world[0], st0.v_world[0], np.zeros(3), np.zeros(3)
+    )
     t_ns = STAMP0_NS + np.round(t * 1e9).astype(np.int64)
     icfg = ImuConfig(gravity_mps2=cfg.gravity_mps2, imu_rate_hz=cfg.imu_rate_hz)
     out = integrate(state, t_ns[1:], imu.gyro_radps[1:], imu.accel_mps2[1:], config=icfg)
@@ -43,8 +45,9 @@ def test_gravity_at_level_hover_direction():
     imu = imu_samples(orbit, t, cfg, rng=None)
     st = orbit.state(t)
     f_world = np.einsum("nij,nj->ni", st.R_world_imu, imu.accel_mps2)
-    np.testing.assert_allclose(f_world - st.a_world, np.tile([0, 0, cfg.gravity_mps2], (50, 1)),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        f_world - st.a_world, np.tile([0, 0, cfg.gravity_mps2], (50, 1)), atol=1e-9
+    )
 
 
 def test_imu_noise_statistics():

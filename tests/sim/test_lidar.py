@@ -11,8 +11,9 @@ def _smear_width(ren, rng_m, wall_x):
     # sensor looks straight down at a wall top edge (wall top at z = 10, ground at z = 0)
     T = look_at([wall_x, 0.0, 10.0 + rng_m], [wall_x, 0.0001, 0.0])
     # a fine grid (1 cm at 50 m) so the smear band is resolved at both ranges
-    pts = ren.lidar_scan(T, spacing_m=0.01 * rng_m / 50.0, range_m=rng_m,
-                         rng=np.random.default_rng(0))
+    pts = ren.lidar_scan(
+        T, spacing_m=0.01 * rng_m / 50.0, range_m=rng_m, rng=np.random.default_rng(0)
+    )
     mixed = (pts[:, 2] > 0.3) & (pts[:, 2] < 9.7)
     return np.ptp(pts[mixed, 0]) if mixed.any() else 0.0, pts
 

@@ -6,11 +6,17 @@ from atr.sim.noise import NoiseSpec, noisy_cloud, noisy_image, parse_noise
 from atr.sim.render import to_srgb8
 
 
-@pytest.mark.parametrize("spec,expected", [
-    (None, NoiseSpec()), ("none", NoiseSpec()), ("shot", NoiseSpec(True, 0.0)),
-    ("gaussian:10", NoiseSpec(False, 0.10)), ("gauss30", NoiseSpec(False, 0.30)),
-    ("shot,gaussian:30cm", NoiseSpec(True, 0.30)),
-])
+@pytest.mark.parametrize(
+    "spec,expected",
+    [
+        (None, NoiseSpec()),
+        ("none", NoiseSpec()),
+        ("shot", NoiseSpec(True, 0.0)),
+        ("gaussian:10", NoiseSpec(False, 0.10)),
+        ("gauss30", NoiseSpec(False, 0.30)),
+        ("shot,gaussian:30cm", NoiseSpec(True, 0.30)),
+    ],
+)
 def test_parse(spec, expected):
     assert parse_noise(spec) == expected
 
@@ -37,6 +43,7 @@ def test_shot_noise_is_poisson_on_linear_intensity():
 
 def test_lidar_gaussian_noise_in_metres():
     pts = np.zeros((20000, 3))
-    out = noisy_cloud(pts + [0, 0, 100.0], np.zeros(3), NoiseSpec(False, 0.30), 1e-3,
-                      np.random.default_rng(0))
+    out = noisy_cloud(
+        pts + [0, 0, 100.0], np.zeros(3), NoiseSpec(False, 0.30), 1e-3, np.random.default_rng(0)
+    )
     assert np.std(out - [0, 0, 100.0], axis=0) == pytest.approx([0.3, 0.3, 0.3], rel=0.05)

@@ -15,10 +15,12 @@ def test_world_point_projects_where_renderer_draws_it(small_cfg):
     _, depth = ren.render(T)
     K = small_cfg.K
     rng = np.random.default_rng(0)
-    uv = np.column_stack([rng.integers(0, small_cfg.width_px, 200),
-                          rng.integers(0, small_cfg.height_px, 200)])
-    rays_cam = np.column_stack([(uv[:, 0] - K[0, 2]) / K[0, 0], (uv[:, 1] - K[1, 2]) / K[1, 1],
-                                np.ones(len(uv))])
+    uv = np.column_stack(
+        [rng.integers(0, small_cfg.width_px, 200), rng.integers(0, small_cfg.height_px, 200)]
+    )
+    rays_cam = np.column_stack(
+        [(uv[:, 0] - K[0, 2]) / K[0, 0], (uv[:, 1] - K[1, 2]) / K[1, 1], np.ones(len(uv))]
+    )
     rays_w = rays_cam @ T[:3, :3].T
     s = -T[2, 3] / rays_w[:, 2]  # intersection with z = 0
     P = T[:3, 3] + rays_w * s[:, None]
@@ -52,8 +54,9 @@ def test_same_world_renders_identically(small_cfg):
 def test_distorted_lens_projection_matches_render(small_cfg):
     """With lens distortion, a ground point seen through a pixel projects back to that pixel with
     OpenCV's distortion model, and the rendered depth there is the point's depth."""
-    import cv2
     from dataclasses import replace
+
+    import cv2
 
     cfg = replace(small_cfg, dist_coeffs=(-0.12, 0.03, 0.001, -0.0005, 0.0))
     world = toy_world([], cfg)

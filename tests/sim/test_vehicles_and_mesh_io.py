@@ -44,8 +44,13 @@ def test_mesh_round_trip(tmp_path, ext):
 
 
 def test_loose_parts_load(tmp_path):
-    parts = merge([box((1, 1, 1), (0, 0, 0.5)), box((1, 1, 1), (3, 0, 0.5)),
-                   box((0.2, 0.2, 0.2), (0, 0, 0.5))])
+    parts = merge(
+        [
+            box((1, 1, 1), (0, 0, 0.5)),
+            box((1, 1, 1), (3, 0, 0.5)),
+            box((0.2, 0.2, 0.2), (0, 0, 0.5)),
+        ]
+    )
     p = tmp_path / "parts.ply"
     save_mesh(parts, p)
     assert load_mesh(p).n_triangles == parts.n_triangles
@@ -59,7 +64,9 @@ def test_load_errors(tmp_path):
     with pytest.raises(InputError):
         load_mesh(bad)
     empty = tmp_path / "empty.ply"
-    empty.write_text("ply\nformat ascii 1.0\nelement vertex 0\nelement face 0\n"
-                     "property list uchar int vertex_indices\nend_header\n")
+    empty.write_text(
+        "ply\nformat ascii 1.0\nelement vertex 0\nelement face 0\n"
+        "property list uchar int vertex_indices\nend_header\n"
+    )
     with pytest.raises(InputError):
         load_mesh(empty)

@@ -41,14 +41,18 @@ def test_tuned_occluder_gives_table_ii_absent_share(world_s1r3, small_cfg):
     of the run and leaves it visible in most."""
     import numpy as np
 
-    from atr.sim.world import frame_times_s
     from atr.sim import scenario
+    from atr.sim.world import frame_times_s
 
     sc = scenario(1, 3)
     ren = Renderer(world_s1r3, small_cfg)
     Tic = small_cfg.T_imu_cam_matrix
-    vis = np.array([ren.visible_fraction(world_s1r3.orbit.T_world_imu(t) @ Tic)
-                    for t in frame_times_s(sc, small_cfg)])
+    vis = np.array(
+        [
+            ren.visible_fraction(world_s1r3.orbit.T_world_imu(t) @ Tic)
+            for t in frame_times_s(sc, small_cfg)
+        ]
+    )
     present = vis >= small_cfg.present_min_visible_fraction
     scene_absent = 1.0 - (present[:-1] & present[1:]).mean()
     assert world_s1r3.occluder_width_m > 0
