@@ -168,3 +168,35 @@ def test_killed_service_is_restarted_by_atr_up(tmp_path):
             session.close()
     finally:
         assert stop_process(up, 30) == 0
+
+
+def test_template_query_that_times_out_is_reported_and_the_matcher_goes_on(hub):
+    # No template store on the bus: the matcher's template query times out for each cloud.
+    service = _service("atr_matcher", hub, "--set", "pipeline.template_timeout_s=1")
+    session = open_session(peer_config(hub))
+    try:
+        _wait_running(session, "atr_matcher")
+        errors = []
+        session.declare_subscriber(
+            "atr/uav1/atr_matcher/errors",
+            lambda s: errors.append(codec.unpack(s.payload.to_bytes())),
+        )
+        time.sleep(0.5)
+        for seq in range(2):
+            cloud = example("PointCloud") | {"seq": seq, "stamp_ns": 5_000 + seq}
+            session.put(
+                "atr/uav1/sfm/cloud",
+                codec.pack(cloud),
+                congestion_control=zenoh.CongestionControl.BLOCK,
+            )
+        deadline = time.monotonic() + 60
+        while len(errors) < 2 and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert [e["input_stamp_ns"] for e in errors] == [5_000, 5_001]
+        assert all(
+            e["error_type"] == "BusError" and "atr/templates/" in e["reason"] for e in errors
+        )
+        assert service.poll() is None
+    finally:
+        session.close()
+        stop_process(service)
