@@ -44,6 +44,7 @@ class PipelineConfig:
     target_meshes: tuple[str, ...] = ()
     cloud_source: Literal["sfm", "lidar"] = "sfm"
     template_timeout_s: float = 600.0
+    compact_clouds: bool = False
 
     def __post_init__(self) -> None:
         if not self.targets and not self.target_meshes:

@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from atr.errors import RecordingError
 from bus import codec
+from bus.clouds import cloud_points
 
 # Box drawn around a detection, metres (length, width, height of a T-72-sized vehicle, centred 1.1 m up).
 DETECTION_BOX_M = (7.0, 3.6, 2.2)
@@ -190,7 +191,7 @@ def export_foxglove(in_path: str | Path, out_path: str | Path) -> dict[str, int]
                 log(
                     "/" + "/".join(parts[1:]),
                     PointCloudChannel,
-                    _cloud(stamp, data["points_m"]),
+                    _cloud(stamp, cloud_points(data)),
                     stamp,
                 )
             elif topic.endswith("/pose/camera"):

@@ -353,6 +353,7 @@ def recorded_scenes(path: Path, gap: int, uav: str = "uav1") -> list[Any]:
 
     from atr.evaluation.runner import SceneRecord, detection_dict  # noqa: PLC0415
     from bus import codec, keys  # noqa: PLC0415
+    from bus.clouds import cloud_points  # noqa: PLC0415
 
     truth: dict[int, dict] = {}
     detections: dict[int, dict] = {}
@@ -369,7 +370,7 @@ def recorded_scenes(path: Path, gap: int, uav: str = "uav1") -> list[Any]:
                 detections[data["stamp_ns"]] = data
             elif topic in (keys.sfm_cloud(uav), keys.lidar(uav)):
                 data = codec.unpack(message.data)
-                clouds[data["stamp_ns"]] = len(data["points_m"])
+                clouds[data["stamp_ns"]] = len(cloud_points(data))
             elif topic.endswith("/timing") and ("/sfm/" in topic or "/atr_matcher/" in topic):
                 data = codec.unpack(message.data)
                 prefix = "sfm_" if "/sfm/" in topic else ""

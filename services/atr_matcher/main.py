@@ -18,6 +18,7 @@ import numpy as np
 
 from atr.recognition import Template, recognize
 from bus import keys
+from bus.clouds import cloud_points
 from bus.service import effective_config, service_arguments, start_node
 
 
@@ -64,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
                     ]
                 cloud = message.data
                 result = recognize(
-                    cloud["points_m"].astype(np.float64),
+                    cloud_points(cloud).astype(np.float64),
                     templates,
                     recognition,
                     seed=message.seq,

@@ -16,6 +16,7 @@ import numpy as np
 
 from atr.sfm import reconstruct
 from bus import keys
+from bus.clouds import compact_points
 from bus.node import Message
 from bus.service import effective_config, service_arguments, start_node
 
@@ -43,7 +44,8 @@ def _cloud(
 def main(argv: list[str] | None = None) -> int:
     """Run the service until stopped."""
     args = service_arguments("sfm", __doc__).parse_args(argv)
-    config = effective_config(args).sfm
+    full_config = effective_config(args)
+    config, compact = full_config.sfm, full_config.pipeline.compact_clouds
     gap, source = config.pair_gap_frames, f"sfm-{config.matcher}"
     images: dict[int, dict] = {}  # frame_seq -> Image message
     pairs: dict[int, dict] = {}  # frame_seq_t1 -> RelativePose message
@@ -51,14 +53,19 @@ def main(argv: list[str] | None = None) -> int:
     with start_node("sfm", args, inputs=inputs) as node:
         node.ready()
 
+        def publish_cloud(message: dict) -> None:
+            if compact:  # the radio link's form (bus/clouds.py)
+                points = message.pop("points_m")
+                message |= compact_points(points)
+            node.publish(keys.sfm_cloud(args.uav), message)
+
         def reconstruct_pair(frame: int, trigger: Message) -> None:
             image_b, pose = images[frame], pairs.pop(frame)
             image_a = images.get(pose["frame_seq_t"])
             if image_a is None:
                 note = f"image of frame {pose['frame_seq_t']} never arrived"
                 empty = np.zeros((0, 3))
-                node.publish(
-                    keys.sfm_cloud(args.uav),
+                publish_cloud(
                     _cloud(
                         image_b["stamp_ns"],
                         source,
@@ -78,8 +85,7 @@ def main(argv: list[str] | None = None) -> int:
                 pose["T_world_cam_t1"],
                 config,
             )
-            node.publish(
-                keys.sfm_cloud(args.uav),
+            publish_cloud(
                 _cloud(
                     image_b["stamp_ns"],
                     source,
@@ -102,8 +108,7 @@ def main(argv: list[str] | None = None) -> int:
                         del images[stale]  # its pose never came (reported upstream)
                     if frame < gap:
                         empty = np.zeros((0, 3))
-                        node.publish(
-                            keys.sfm_cloud(args.uav),
+                        publish_cloud(
                             _cloud(
                                 message.stamp_ns,
                                 source,
