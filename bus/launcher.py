@@ -23,7 +23,7 @@ from typing import IO, Any
 import yaml
 import zenoh
 
-from atr.errors import ConfigError
+from atr.errors import BusError, ConfigError
 from bus.session import open_session
 
 log = logging.getLogger("atr")
@@ -289,7 +289,7 @@ def wait_until_ready(
     """Block until every service has published a `running` status.
 
     Raises:
-        ConfigError: some services were not ready in time (named in the message).
+        BusError: some services were not ready in time (named in the message).
 
     """
     ready: set[str] = set()
@@ -317,7 +317,9 @@ def wait_until_ready(
                 supervisor.poll()
             time.sleep(0.1)
         missing = sorted(set(services) - ready)
-        raise ConfigError(f"services not ready after {timeout_s:.0f} s: {missing}")
+        raise BusError(
+            f"services not ready (no `running` status) after {timeout_s:.0f} s: {missing}"
+        )
     finally:
         subscriber.undeclare()
 

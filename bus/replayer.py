@@ -78,7 +78,7 @@ class Replayer:
             `zenoh_config`.
         zenoh_config: config dict or JSON5 path, used when `session` is None.
         uav: replay only this vehicle's inputs (None: every vehicle in the recording).
-        wait_for: services (e.g. "sfm") whose Status must be seen before the first message.
+        wait_for: services (e.g. "sfm") whose `running` Status must be seen before the first message.
         ready_timeout_s: how long to wait for those services, seconds.
         match_timeout_s: how long to wait for each publisher to have a matching subscriber, seconds.
         settle_s: extra pause before the first message, seconds.
@@ -288,32 +288,9 @@ class Replayer:
         self._stop.wait(self._settle_s)
 
     def _wait_for_services(self) -> None:
-        seen: set[str] = set()
-        cv = threading.Condition()
+        from bus.launcher import wait_until_ready  # noqa: PLC0415
 
-        def on_status(sample: zenoh.Sample) -> None:
-            with cv:
-                seen.add(str(sample.key_expr).split("/")[2])
-                cv.notify_all()
-
-        subs = [
-            self.session.declare_subscriber(f"atr/*/{s}/status", on_status) for s in self._wait_for
-        ]
-        try:
-            with cv:
-                ok = cv.wait_for(
-                    lambda: seen >= set(self._wait_for) or self._stop.is_set(),
-                    timeout=self._ready_timeout_s,
-                )
-        finally:
-            for sub in subs:
-                sub.undeclare()
-        if not ok:
-            missing = sorted(set(self._wait_for) - seen)
-            raise BusError(
-                f"no Status from {', '.join(missing)} within {self._ready_timeout_s} s; "
-                "are they running?"
-            )
+        wait_until_ready(self.session, "*", list(self._wait_for), self._ready_timeout_s)
 
     def _on_answer(self, sample: zenoh.Sample) -> None:
         self._note_answer(sample, "stamp_ns")

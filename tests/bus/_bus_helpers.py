@@ -113,6 +113,7 @@ def publish(args: argparse.Namespace) -> int:
 def pipeline(args: argparse.Namespace) -> int:
     rng = np.random.default_rng(args.seed)
     with Node("fake_pipeline", "uav1", inputs=["atr/*/camera/image"]) as node:
+        node.ready()
         for n, message in enumerate(node.events()):
             with node.handling(message):
                 time.sleep(float(rng.uniform(0.0, args.max_delay)))

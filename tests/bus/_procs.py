@@ -10,6 +10,7 @@ from typing import Any
 
 import zenoh
 
+from bus import codec
 from bus.session import open_session
 
 HERE = Path(__file__).resolve().parent
@@ -51,6 +52,10 @@ class Watcher:
         self._sub = self.session.declare_subscriber("atr/*/*/status", self._on_status)
 
     def _on_status(self, sample: zenoh.Sample) -> None:
+        # "running" comes after the service installed its signal handlers and is ready for input;
+        # a signal sent on "starting" could hit it half-built.
+        if codec.unpack(sample.payload.to_bytes()).get("state") != "running":
+            return
         with self._cv:
             self._seen.add(str(sample.key_expr).split("/")[2])
             self._cv.notify_all()
