@@ -35,17 +35,7 @@ def run(args: argparse.Namespace) -> int:
     from services.sensor_source.main import flight_frames, frame_messages  # noqa: PLC0415
 
     config = load_config(None, args.overrides)
-    frames = flight_frames(
-        config,
-        args.scenario,
-        args.run,
-        args.frames,
-        args.seed,
-        args.lidar,
-        args.noise,
-        args.target_mesh,
-        tuple(args.clutter_mesh),
-    )
+    frames = flight_frames(config, args)
 
     def messages():  # noqa: ANN202
         for index, frame in enumerate(frames):

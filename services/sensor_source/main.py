@@ -21,7 +21,6 @@ import logging
 import threading
 import time
 from collections.abc import Iterator
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -130,36 +129,21 @@ def add_flight_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def flight_frames(
-    config: AtrConfig,
-    scenario: int,
-    run: int,
-    frames: int | None,
-    seed: int,
-    lidar: bool,
-    noise: str | None,
-    target_mesh: str | None = None,
-    clutter_meshes: tuple[str, ...] = (),
-) -> Iterator[SensorFrame]:
-    """The simulated frames of a run, with optional mesh files for the target and extra confusers."""
-    from atr.io.mesh import load_mesh  # noqa: PLC0415
-    from atr.sim.flight import simulate_flight  # noqa: PLC0415
-    from atr.sim.scenarios import scenario as scenario_preset  # noqa: PLC0415
+def flight_frames(config: AtrConfig, args: argparse.Namespace) -> Iterator[SensorFrame]:
+    """The simulated frames of the flight the `add_flight_arguments` options describe."""
+    from atr.evaluation.runner import Flight  # noqa: PLC0415 - loads Open3D
+    from atr.evaluation.runner import flight_frames as fly
 
-    target = load_mesh(target_mesh) if target_mesh else None
-    clutter = [load_mesh(p) for p in clutter_meshes]
-    name = Path(target_mesh).stem if target_mesh else None
-    return simulate_flight(
-        scenario_preset(scenario, run),
-        seed=seed,
-        frames=frames,
-        target_mesh=target,
-        clutter_meshes=clutter,
-        lidar=lidar,
-        noise=noise,
-        config=config.sim,
-        target_name=name,
+    flight = Flight(
+        args.scenario,
+        args.run,
+        args.frames,
+        args.seed,
+        args.noise or "none",
+        args.target_mesh,
+        tuple(args.clutter_mesh),
     )
+    return iter(fly(flight, config, args.lidar))
 
 
 class AnswerWatch:
@@ -201,17 +185,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     config = effective_config(args)
-    frames = flight_frames(
-        config,
-        args.scenario,
-        args.run,
-        args.frames,
-        args.seed,
-        args.lidar,
-        args.noise,
-        args.target_mesh,
-        tuple(args.clutter_mesh),
-    )
+    frames = flight_frames(config, args)
     with start_node("sensor_source", args, inputs=[]) as node:
         watch = AnswerWatch(node.session, args.uav, keys.detections(args.uav))
         node.ready()
