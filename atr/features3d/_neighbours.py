@@ -120,25 +120,9 @@ def _sort_by_distance(idx: np.ndarray, d2: np.ndarray) -> None:
 
 @numba.njit(cache=True, parallel=True)
 def _search(surface, order, unique_keys, starts, origin, dims, cell, queries, r2, sort):
+    # Two passes: count each query's neighbours to size the flat output, then fill it.
     k = queries.shape[0]
-    counts = np.zeros(k, dtype=np.int64)
-    dummy_i = np.empty(0, dtype=np.int64)
-    dummy_d = np.empty(0, dtype=np.float64)
-    for i in numba.prange(k):
-        counts[i] = _visit(
-            surface,
-            order,
-            unique_keys,
-            starts,
-            origin,
-            dims,
-            cell,
-            queries[i],
-            r2,
-            dummy_i,
-            dummy_d,
-            False,
-        )
+    counts = _count(surface, order, unique_keys, starts, origin, dims, cell, queries, r2)
     offsets = np.zeros(k + 1, dtype=np.int64)
     for i in range(k):
         offsets[i + 1] = offsets[i] + counts[i]
