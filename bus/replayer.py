@@ -35,8 +35,9 @@ import zenoh
 from mcap.reader import make_reader
 from mcap.records import Message
 
-from atr.errors import AtrError, BusError, ConfigError, RecordingError
+from atr.errors import BusError, ConfigError, RecordingError
 from bus import codec, keys
+from bus.answers import DEFAULT_ANSWER_KEY, AnswerWatch
 from bus.node import Node
 from bus.session import open_session
 
@@ -46,7 +47,6 @@ INPUT_TOPIC = re.compile(
     r"^(atr/[^/]+/(" + "|".join(re.escape(k) for k in keys.INPUT_KEYS) + r")|sim/[^/]+/truth)$"
 )
 IMAGE_TOPIC = re.compile(r"^atr/([^/]+)/camera/image$")
-DEFAULT_ANSWER_KEY = "atr/{uav}/detections"
 
 
 def is_input_topic(topic: str) -> bool:
@@ -116,8 +116,7 @@ class Replayer:
         self._ready_timeout_s = ready_timeout_s
         self._match_timeout_s = match_timeout_s
         self._settle_s = settle_s
-        self._answers: set[tuple[str, int]] = set()
-        self._answer_cv = threading.Condition()
+        self._watch: AnswerWatch | None = None
         self._publishers = {
             topic: self.session.declare_publisher(
                 topic, congestion_control=zenoh.CongestionControl.BLOCK
@@ -171,10 +170,7 @@ class Replayer:
         """
         if not answer_timeout_s > 0:
             raise ConfigError(f"answer timeout {answer_timeout_s} s must be > 0")
-        subscribers = [
-            self.session.declare_subscriber(answer_key.replace("{uav}", "*"), self._on_answer),
-            self.session.declare_subscriber("atr/*/*/errors", self._on_error_report),
-        ]
+        self._watch = AnswerWatch(self.session, self.node.service, answer_key)
         try:
             self._get_ready()
             start_wall = time.monotonic()
@@ -185,8 +181,8 @@ class Replayer:
                     self._await_answer(image.group(1), message, answer_key, answer_timeout_s)
             return self._finish(start_wall)
         finally:
-            for sub in subscribers:
-                sub.undeclare()
+            self._watch.close()
+            self._watch = None
 
     def run(self, mode: str = "lock-step", **kwargs: Any) -> ReplayStats:
         """Dispatch to `recorded`, `fast` or `lock_step` by name ("recorded", "fast", "lock-step").
@@ -203,8 +199,8 @@ class Replayer:
     def stop(self) -> None:
         """Ask a running replay to end after the message in hand."""
         self._stop.set()
-        with self._answer_cv:
-            self._answer_cv.notify_all()
+        if self._watch is not None:
+            self._watch.wake()
 
     def close(self, linger_s: float = 0.3) -> None:
         """Let the last publications leave (`linger_s`), then undeclare and close what this replayer
@@ -292,34 +288,10 @@ class Replayer:
 
         wait_until_ready(self.session, "*", list(self._wait_for), self._ready_timeout_s)
 
-    def _on_answer(self, sample: zenoh.Sample) -> None:
-        self._note_answer(sample, "stamp_ns")
-
-    def _on_error_report(self, sample: zenoh.Sample) -> None:
-        # the replayer's own timeout reports answer nothing
-        if str(sample.key_expr).split("/")[2] != self.node.service:
-            self._note_answer(sample, "input_stamp_ns")
-
-    def _note_answer(self, sample: zenoh.Sample, field_name: str) -> None:
-        try:
-            message = codec.unpack(sample.payload.to_bytes())
-        except AtrError:
-            return
-        stamp = message.get(field_name) if isinstance(message, dict) else None
-        if isinstance(stamp, int):
-            uav = str(sample.key_expr).split("/")[1]
-            with self._answer_cv:
-                self._answers.add((uav, stamp))
-                self._answer_cv.notify_all()
-
     def _await_answer(self, uav: str, image: Message, answer_key: str, timeout_s: float) -> None:
         stamp = image.publish_time
         self.stats.frames += 1
-        with self._answer_cv:
-            answered = self._answer_cv.wait_for(
-                lambda: (uav, stamp) in self._answers or self._stop.is_set(), timeout=timeout_s
-            )
-            self._answers.discard((uav, stamp))
+        answered = self._watch.wait(uav, stamp, timeout_s, self._stop)
         if self._stop.is_set():
             return
         if answered:

@@ -18,14 +18,14 @@ from __future__ import annotations
 
 import argparse
 import logging
-import threading
 import time
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bus import codec, keys
+from bus import keys
+from bus.answers import AnswerWatch
 from bus.service import effective_config, service_arguments, start_node
 
 if TYPE_CHECKING:  # the simulator (Open3D) loads only when a flight is flown, not for `atr --help`
@@ -146,35 +146,6 @@ def flight_frames(config: AtrConfig, args: argparse.Namespace) -> Iterator[Senso
     return iter(fly(flight, config, args.lidar))
 
 
-class AnswerWatch:
-    """Tracks which frame stamps the pipeline has answered (Detections, or an ErrorReport about them)."""
-
-    def __init__(self, session: Any, uav: str, answer_key: str) -> None:
-        self._answered: set[int] = set()
-        self._cond = threading.Condition()
-        self._subs = [
-            session.declare_subscriber(answer_key, lambda s: self._on(s, "stamp_ns")),
-            session.declare_subscriber(
-                f"atr/{uav}/*/errors", lambda s: self._on(s, "input_stamp_ns")
-            ),
-        ]
-
-    def _on(self, sample: Any, field: str) -> None:
-        try:
-            stamp = codec.unpack(sample.payload.to_bytes()).get(field)
-        except Exception:  # not ours to judge here; the recorder keeps it
-            return
-        if isinstance(stamp, int):
-            with self._cond:
-                self._answered.add(stamp)
-                self._cond.notify_all()
-
-    def wait(self, stamp_ns: int, timeout_s: float) -> bool:
-        """True once `stamp_ns` was answered; False after `timeout_s`."""
-        with self._cond:
-            return self._cond.wait_for(lambda: stamp_ns in self._answered, timeout_s)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Fly the run, then exit."""
     parser = service_arguments("sensor_source", __doc__)
@@ -187,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
     config = effective_config(args)
     frames = flight_frames(config, args)
     with start_node("sensor_source", args, inputs=[]) as node:
-        watch = AnswerWatch(node.session, args.uav, keys.detections(args.uav))
+        watch = AnswerWatch(node.session, node.service)
         node.ready()
         time.sleep(1.0)  # let gossip connect every peer before the first frame
         last_stamp: int | None = None
@@ -207,7 +178,9 @@ def main(argv: list[str] | None = None) -> int:
             ):
                 node.publish(key, message)
             last_stamp = frame.stamp_ns
-            if args.pace == "lock-step" and not watch.wait(frame.stamp_ns, args.answer_timeout):
+            if args.pace == "lock-step" and not watch.wait(
+                args.uav, frame.stamp_ns, args.answer_timeout
+            ):
                 node.report_error(
                     keys.detections(args.uav),
                     TimeoutError(f"no answer to frame {frame.seq} within {args.answer_timeout} s"),
