@@ -1,4 +1,4 @@
-"""A smooth test surface with exact normals, shared by the descriptor property tests."""
+"""Test geometry shared by the descriptor property tests: a smooth surface with exact normals, rigid motions."""
 
 import numpy as np
 
@@ -27,3 +27,11 @@ def surface(n=4000, seed=0):
     )
     nrm = np.c_[-dzx, -dzy, np.ones(n)]
     return np.c_[xy, z], nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+
+
+def random_rigid(rng):
+    """A random proper rotation (3, 3) and translation (3,)."""
+    a, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    if np.linalg.det(a) < 0:
+        a[:, 0] = -a[:, 0]
+    return a, rng.normal(size=3)

@@ -10,14 +10,7 @@ from atr.errors import InputError
 from atr.features3d._fpfh import fpfh
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _surfaces import surface  # noqa: E402
-
-
-def random_rigid(rng):
-    a, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    if np.linalg.det(a) < 0:
-        a[:, 0] = -a[:, 0]
-    return a, rng.normal(size=3)
+from _surfaces import random_rigid, surface  # noqa: E402
 
 
 def test_rigid_transform_invariance():
