@@ -9,7 +9,9 @@ numbers (see docs/features3d_fpfh_rops_hod.md):
 2. LRF: each triangle contributes its scatter matrix (1/12)(Σ_i Σ_j v_i v_jᵀ + Σ_i v_i v_iᵀ), v_i = vertex -
    keypoint, weighted by |e1 × e2| (twice its area) × (R - |centroid - keypoint|)². x = eigenvector of the largest
    eigenvalue, z = of the smallest; each is flipped when the weighted sum Σ_t w_t/6 Σ_i v_i·axis is negative;
-   y = z × x. (PCL 1.13 forgets to divide by the total area: a common scale, no effect on the frame.)
+   y = z × x. (PCL 1.13 forgets to divide by the total area: a common scale, no effect on the frame.) The
+   eigenvectors come from Eigen's general float32 ``EigenSolver``, as in PCL, replicated bit for bit in
+   ``_eigen_f32``: an exact solver differs by ~1e-6, enough to move a point across a bin edge.
 3. The local points, moved into the LRF, are rotated about x, then y, then z by θ = k·90°/(rotations+1) (float32
    accumulation, while θ < 90°). Each rotated cloud is projected on the xy, xz and yz planes; a
    partition_bins × partition_bins count matrix over the projection's bounding box (last bin closed), divided by
@@ -20,7 +22,8 @@ numbers (see docs/features3d_fpfh_rops_hod.md):
 For a bare point cloud (``triangles=None``) only step 2 changes (point-based variant): the scatter matrix is
 Σ_q (R - |q - p|)² (q - p)(q - p)ᵀ over the local points, and the sign test uses the same weights. Each point
 stands for a triangle of equal area at its own position; no triangulation is built (a local Delaunay per keypoint
-costs far more than the descriptor itself, and ball pivoting needs normals and a global pass).
+costs far more than the descriptor itself, and ball pivoting needs normals and a global pass). This variant has no
+PCL counterpart to match, so its frame comes from an exact float64 symmetric solver (``eigh``).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import numba
 import numpy as np
 
 from atr.errors import ConfigError, InputError
+from atr.features3d._eigen_f32 import eigen_solver_3x3
 from atr.features3d._fpfh import (
     as_points,
     check_radius,
@@ -84,8 +88,33 @@ def _dot3(ax, ay, az, bx, by, bz):
 
 
 @numba.njit(cache=True)
-def _lrf_mesh(pts, tris, local_tris, fp, radius):
-    """PCL 1.13 RoPS LRF from the local triangles; rows x, y, z (float32) or all NaN."""
+def _pcl_major_minor(m):
+    """PCL 1.13's ROPSEstimation::computeEigenVectors: (ok, major axis, minor axis), float32.
+
+    Eigen's float32 EigenSolver on the (not exactly symmetric) scatter matrix, replicated bit for bit: RoPS's bins
+    move with 1e-6 changes of the frame, which is the distance between this solver and an exact one. The axes
+    are the real parts of the eigenvectors of the largest and smallest real parts of the eigenvalues, ranked
+    with PCL's three compare-and-swap steps (ties keep Eigen's order).
+    """
+    ok, re, _im, vre, _vim = eigen_solver_3x3(m)
+    major = 0
+    middle = 1
+    minor = 2
+    if re[major] < re[middle]:
+        major, middle = middle, major
+    if re[major] < re[minor]:
+        major, minor = minor, major
+    if re[middle] < re[minor]:
+        middle, minor = minor, middle
+    return ok, vre[:, major].copy(), vre[:, minor].copy()
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _mesh_scatter(pts, tris, local_tris, fp, radius):
+    """PCL 1.13's weighted scatter matrix of the local triangles, and each triangle's weight in the sign test.
+
+    float32; not exactly symmetric, since PCL sums v_i v_jᵀ in its own order (the solver sees it as it is).
+    """
     n_t = local_tris.shape[0]
     scatters = np.zeros((n_t, 3, 3), dtype=np.float32)
     area = np.zeros(n_t, dtype=np.float32)
@@ -143,17 +172,22 @@ def _lrf_mesh(pts, tris, local_tris, fp, radius):
             for s in range(3):
                 overall[r, s] += factor * scatters[it, r, s]
         total_w[it] = factor * _ONE_SIXTH
-    m64 = overall.astype(np.float64)
-    m64 = 0.5 * (m64 + m64.T)
+    return overall, total_w
+
+
+@numba.njit(cache=True)
+def _lrf_mesh(pts, tris, local_tris, fp, radius):
+    """PCL 1.13 RoPS LRF from the local triangles; rows x, y, z (float32) or all NaN."""
+    overall, total_w = _mesh_scatter(pts, tris, local_tris, fp, radius)
     lrf = np.full((3, 3), np.nan, dtype=np.float32)
-    if not np.all(np.isfinite(m64)):
+    if not np.all(np.isfinite(overall)):
         return lrf
-    _vals, vecs = np.linalg.eigh(m64)
-    x = vecs[:, 2].astype(np.float32)
-    z = vecs[:, 0].astype(np.float32)
+    ok, x, z = _pcl_major_minor(overall)
+    if not ok:
+        return lrf
     h1 = _F0
     h3 = _F0
-    for it in range(n_t):
+    for it in range(local_tris.shape[0]):
         t = local_tris[it]
         f1 = _F0
         f3 = _F0
