@@ -44,38 +44,45 @@ class DescriptionRadius:
 
 # Paper §III-B: "The description radius of each 3D descriptor was ρ·r, where r is the average point cloud
 # resolution of the CAD model and ρ a multiplier as suggested by the authors of each descriptor (e.g. for HoD and
-# HoD-S, r is the scene resolution)". The paper does not print the values; these are the authors' own choices.
+# HoD-S, r is the scene resolution)". The paper does not print the values; these are the authors' own choices as
+# recalled. The descriptor papers' texts could not be consulted: every "paper" figure below is unverified. The PCL
+# figures were checked: SHOT against PCL's test source (radius 20 × mr, mr = 0.002 m), USC and 3DSC against its
+# test parameters transcribed in tests/data/pcl_oracles_features3d.json (0.04, 0.004, 0.008 m), RoPS's bins and
+# rotations against PCL's ROPSEstimation defaults.
 DESCRIPTION_RADII: dict[str, DescriptionRadius] = {
     "shot": DescriptionRadius(
         15.0,
         "Tombari, Salti, Di Stefano, ECCV 2010 and Salti et al., CVIU 2014: support radius 15 mr in the "
-        "descriptor-matching experiments (PCL's own test uses 20 mr; its recognition tutorial 15 x resolution)",
+        "descriptor-matching experiments (unverified); PCL's SHOT test uses 20 mr (checked)",
     ),
     "usc": DescriptionRadius(
         20.0,
         "Tombari, Salti, Di Stefano, 3DOR 2010 (USC): radius 20 mr, minimal radius 0.1 R, density radius 0.2 R "
-        "(the same ratios as PCL's USC test)",
+        "(unverified); PCL's USC test uses R = 20 mr, R/10 and R/5 (checked)",
     ),
     "3dsc": DescriptionRadius(
         20.0,
-        "Frome et al., ECCV 2004 give absolute radii (r_min 0.1, r_max 2.5 scan units); 20 mr with r_min = R/10 "
-        "and density radius R/5 follows Tombari et al. 2010's comparison and PCL's 3DSC test",
+        "Frome et al., ECCV 2004 give absolute radii (r_min 0.1, r_max 2.5 scan units; unverified); 20 mr with "
+        "r_min = R/10 and density radius R/5 as PCL's 3DSC test (checked) and Tombari et al. 2010's comparison "
+        "(unverified)",
     ),
     "fpfh": DescriptionRadius(
         15.0,
         "Rusu et al., ICRA 2009 give no resolution multiple; 15 mr as in Guo et al., IJCV 2016, the comparison "
-        "of local descriptors that the paper's descriptor set follows",
+        "of local descriptors that the paper's descriptor set follows (unverified)",
     ),
     "rops": DescriptionRadius(
-        15.0, "Guo et al., IJCV 2013 (RoPS): support radius 15 mr, 5 partition bins, 3 rotations"
+        15.0,
+        "Guo et al., IJCV 2013 (RoPS): support radius 15 mr (unverified), 5 partition bins, 3 rotations "
+        "(PCL's defaults, checked)",
     ),
     "hod": DescriptionRadius(
         15.0,
-        "Kechagias-Stamatis & Aouf, HoD (2016): 15 x scene resolution (r is the scene resolution for HoD, "
-        "paper §III-B)",
+        "Kechagias-Stamatis & Aouf, HoD (2016): 15 x scene resolution (unverified; r is the scene resolution "
+        "for HoD, paper §III-B)",
     ),
     "hod-s": DescriptionRadius(
-        15.0, "Kechagias-Stamatis et al. 2017 (HoD-S): as HoD, 15 x scene resolution"
+        15.0, "Kechagias-Stamatis et al. 2017 (HoD-S): as HoD, 15 x scene resolution (unverified)"
     ),
 }
 
