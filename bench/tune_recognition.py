@@ -110,6 +110,7 @@ def make(args: argparse.Namespace) -> None:
             az_deg = float(np.degrees(np.arctan2(rel[1, 3], rel[0, 3])))
             data = {
                 "sfm_points_m": np.asarray(cloud.points_world_m, np.float32),
+                "sfm_sigma_m": np.asarray(cloud.sigma_m, np.float32),
                 "viewpoint_m": T_b[:3, 3].astype(np.float64),
                 "T_world_target": T_wt.astype(np.float64),
                 "visible_fraction": np.array([vis_a, vis_b]),
@@ -157,6 +158,9 @@ def load_scenes(cache: Path, scenarios: list[int], source: str) -> list[dict]:
                 {
                     "name": path.stem,
                     "points": z[key].astype(np.float64),
+                    "sigma": z["sfm_sigma_m"].astype(np.float64)
+                    if source == "sfm" and "sfm_sigma_m" in z.files
+                    else None,
                     "viewpoint": z["viewpoint_m"],
                     "T_world_target": z["T_world_target"],
                     "visible": z["visible_fraction"],
@@ -211,7 +215,12 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
     errors = []
     for sc in scenes:
         res = recognize(
-            sc["points"], templates, config, seed=sc["meta"]["seq_b"], viewpoint_m=sc["viewpoint"]
+            sc["points"],
+            templates,
+            config,
+            seed=sc["meta"]["seq_b"],
+            viewpoint_m=sc["viewpoint"],
+            scene_sigma_m=sc["sigma"],
         )
         times.append(res.stage_times_ms["total"])
         for k, v in res.stage_times_ms.items():

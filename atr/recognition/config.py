@@ -58,6 +58,9 @@ class RecognitionConfig:
         max_clutter: and at most this fraction of the scene vertices inside the model's box is left unexplained
             by the model (rejects box-like models laid on buildings, and small confusers laid on a bigger
             vehicle). A light form of PCL's global hypothesis verification clutter term.
+        k_clutter_sigma: a scene vertex with a position uncertainty sigma (SfM clouds carry one per
+            point) is explained by the model within max(k_overlap x resolution, this x sigma): depth noise
+            is not clutter (measured in docs/recognition.md).
         k_ground_slab: the bottom of the model's box, this / resolution high, is ignored by the clutter measure
             (the ground under and around the target is not part of the model).
         k_nms: hypotheses whose target centres are closer than this / resolution are one location; only the
@@ -122,6 +125,7 @@ class RecognitionConfig:
     min_overlap: float = 0.4
     min_overlap_vertices: int = 20
     max_clutter: float = 0.5
+    k_clutter_sigma: float = 2.0
     k_ground_slab: float = 2.0
     k_nms: float = 10.0
     max_scene_points: int = 5_000_000

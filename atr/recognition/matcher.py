@@ -133,6 +133,7 @@ def recognize(
     *,
     seed: int,
     viewpoint_m: np.ndarray | None = None,
+    scene_sigma_m: np.ndarray | None = None,
 ) -> RecognitionResult:
     """Recognise the templates' targets in a scene cloud (§II-B-2).
 
@@ -147,18 +148,29 @@ def recognize(
         config: recognition configuration.
         seed: seed of the RANSAC generator (e.g. the cloud's seq); same seed -> same detections.
         viewpoint_m: (3,) sensor position used to orient scene normals; None orients them up (+z).
+        scene_sigma_m: optional (N,) 1-sigma position uncertainty per scene point, metres (the SfM
+            cloud's ``sigma_m``); verification then does not count a point's noise as clutter
+            (``config.k_clutter_sigma``). None (e.g. LIDAR): the fixed overlap distance.
 
     Returns:
         RecognitionResult; empty detections with ``stats["reason"]`` when the scene is too small.
 
     Raises:
-        InputError: the scene is not an (N, 3) numeric array or exceeds ``max_scene_points``.
+        InputError: the scene is not an (N, 3) numeric array or exceeds ``max_scene_points``, or
+            ``scene_sigma_m`` is not (N,).
         ConfigError: a template was built at another resolution than ``config.resolution_m``.
 
     """
     clock = _Clock()
     stats: dict[str, Any] = {}
     pts = _validate_scene(scene_points_m, config)
+    sigma = None
+    if scene_sigma_m is not None:
+        sigma = np.asarray(scene_sigma_m, np.float64)
+        if sigma.shape != (len(pts),):
+            raise InputError(
+                f"scene_sigma_m must have shape ({len(pts)},) like the scene; got {sigma.shape}"
+            )
     for tpl in templates:
         res = tpl.params.get("resolution_m", config.resolution_m)
         if abs(float(res) - config.resolution_m) > 1e-9 * max(1.0, config.resolution_m):
@@ -174,12 +186,17 @@ def recognize(
 
     t = time.perf_counter()
     finite = np.isfinite(pts).all(axis=1)
+    if sigma is not None:
+        finite &= np.isfinite(sigma)
     stats["scene_points"] = int(len(pts))
     stats["dropped_nonfinite"] = int(len(pts) - finite.sum())
     pts = pts[finite]
     if len(pts) == 0:
         return empty("scene has no finite points")
-    surface = pts[uniform_subsample(pts, config.resolution_m)]
+    chosen = uniform_subsample(pts, config.resolution_m)
+    surface = pts[chosen]
+    if sigma is not None:
+        sigma = sigma[finite][chosen]
     stats["subsampled_points"] = int(len(surface))
     t = clock.add("subsample", t)
     if len(surface) < config.normal_k + 1:
@@ -203,6 +220,8 @@ def recognize(
         top = max(float(np.asarray(tpl.points_m)[:, 2].max()) for tpl in templates)
         above = height >= config.ground_cut_m
         surface, height = surface[above], height[above]
+        if sigma is not None:
+            sigma = sigma[above]
         band = (height >= config.k_keypoint_min_height * config.resolution_m) & (
             height <= top + config.ground_cut_m
         )
@@ -330,6 +349,7 @@ def recognize(
                 pts_v = model_all[views[vi][0]]
                 view_cache[vi] = (pts_v, cKDTree(pts_v))
             model_pts, model_tree = view_cache[vi]
+
             v = verify_with_icp(
                 model_pts,
                 surface,
@@ -341,7 +361,18 @@ def recognize(
                 scene_tree=scene_tree,
                 scene_cloud=scene_cloud,
                 model_tree=model_tree,
+                scene_sigma_m=sigma,
+                k_clutter_sigma=config.k_clutter_sigma,
             )
+            on_ground = True
+            if ground_xy is not None:
+                # a ground vehicle's origin (on the ground under it) must lie on the scene's ground
+                _, nb = ground_xy.query(v.T_scene_model[:2, 3], k=min(10, len(ground_z)))
+                z_ground = float(np.median(ground_z[np.atleast_1d(nb)]))
+                on_ground = (
+                    abs(v.T_scene_model[2, 3] - z_ground)
+                    <= config.k_height_tol * config.resolution_m
+                )
             hyp_log.append(
                 (
                     tpl.target,
@@ -352,14 +383,6 @@ def recognize(
                     *(round(float(x), 2) for x in v.T_scene_model[:3, 3]),
                 )
             )
-            on_ground = True
-            if ground_xy is not None:
-                # a ground vehicle's origin (on the ground under it) must lie on the scene's ground
-                _, nb = ground_xy.query(v.T_scene_model[:2, 3], k=min(10, len(ground_z)))
-                on_ground = bool(
-                    abs(v.T_scene_model[2, 3] - float(np.median(ground_z[np.atleast_1d(nb)])))
-                    <= config.k_height_tol * config.resolution_m
-                )
             if (
                 on_ground
                 and v.overlap >= config.min_overlap

@@ -538,6 +538,8 @@ def verify_with_icp(
     scene_tree: cKDTree | None = None,
     scene_cloud: o3d.geometry.PointCloud | None = None,
     model_tree: cKDTree | None = None,
+    scene_sigma_m: np.ndarray | None = None,
+    k_clutter_sigma: float = 0.0,
 ) -> Verification:
     """Apply a hypothesis to the model, refine it with ICP against the scene, measure the fit (§II-B-2).
 
@@ -558,6 +560,10 @@ def verify_with_icp(
         scene_tree: optional prebuilt kd-tree of ``scene_points`` (reused across hypotheses).
         scene_cloud: optional prebuilt Open3D cloud of ``scene_points``.
         model_tree: optional prebuilt kd-tree of ``model_points``.
+        scene_sigma_m: optional (S,) 1-sigma position uncertainty of each scene vertex, metres (SfM
+            gives it; it grows with range). A scene vertex then counts as explained by the model within
+            max(``overlap_m``, ``k_clutter_sigma`` x its sigma): noise is not clutter.
+        k_clutter_sigma: see ``scene_sigma_m``.
 
     Returns:
         The refined pose and its fit with the scene.
@@ -583,24 +589,39 @@ def verify_with_icp(
     if model_tree is None:
         model_tree = cKDTree(model_points)
     R, t = T[:3, :3], T[:3, 3]
-    moved = model_points @ R.T + t
-    d, _ = scene_tree.query(moved, distance_upper_bound=overlap_m)
-    hit = np.isfinite(d)
-    n_hit = int(hit.sum())
-    rmse = float(np.sqrt(np.mean(d[hit] ** 2))) if n_hit else float("inf")
     # Scene side: scene vertices inside the model's box, in the model frame.
     lo, hi = model_points.min(0), model_points.max(0)
     centre = 0.5 * (lo + hi)
     near = scene_tree.query_ball_point(
         R @ centre + t, float(np.linalg.norm(hi - lo)) / 2 + overlap_m
     )
-    clutter = 0.0
+    inside_local = np.zeros((0, 3))
+    explain_m = np.full(0, overlap_m)
     if near:
-        local = (np.asarray(scene_points)[np.sort(near)] - t) @ R  # R^T (p - t)
+        near_idx = np.sort(near)
+        local = (np.asarray(scene_points)[near_idx] - t) @ R  # R^T (p - t)
         box_lo = lo.copy()
         box_lo[2] += ground_slab_m
         inside = np.all((local >= box_lo) & (local <= hi), axis=1)
-        if inside.any():
-            dm, _ = model_tree.query(local[inside], distance_upper_bound=overlap_m)
-            clutter = float(np.mean(~np.isfinite(dm)))
+        inside_local = local[inside]
+        explain_m = np.full(len(inside_local), overlap_m)
+        if scene_sigma_m is not None:
+            sigma = np.asarray(scene_sigma_m, np.float64)[near_idx[inside]]
+            explain_m = np.maximum(explain_m, k_clutter_sigma * sigma)
+    # A sparse scene (a far target in a two-view cloud) samples the target more coarsely than the
+    # model's resolution; a model vertex then overlaps when a scene vertex lies within the scene's own
+    # spacing there (median nearest-neighbour distance inside the box), never less than overlap_m.
+    model_side_m = overlap_m
+    if len(inside_local) >= 3:
+        spacing, _ = cKDTree(inside_local).query(inside_local, k=2)
+        model_side_m = max(overlap_m, float(np.median(spacing[:, 1])))
+    moved = model_points @ R.T + t
+    d, _ = scene_tree.query(moved, distance_upper_bound=model_side_m)
+    hit = np.isfinite(d)
+    n_hit = int(hit.sum())
+    rmse = float(np.sqrt(np.mean(d[hit] ** 2))) if n_hit else float("inf")
+    clutter = 0.0
+    if len(inside_local):
+        dm, _ = model_tree.query(inside_local, distance_upper_bound=float(explain_m.max()))
+        clutter = float(np.mean(~(dm <= explain_m)))
     return Verification(T, n_hit / max(len(model_points), 1), n_hit, clutter, rmse)

@@ -64,12 +64,14 @@ def main(argv: list[str] | None = None) -> int:
                         for t in targets
                     ]
                 cloud = message.data
+                sigma = cloud.get("sigma_m")
                 result = recognize(
                     cloud_points(cloud).astype(np.float64),
                     templates,
                     recognition,
                     seed=message.seq,
                     viewpoint_m=cloud.get("viewpoint_m"),
+                    scene_sigma_m=None if sigma is None else np.asarray(sigma, np.float64),
                 )
                 node.publish(
                     keys.detections(args.uav),

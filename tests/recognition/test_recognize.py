@@ -154,6 +154,17 @@ def test_malformed_scene_raises_input_error(small_template):
         recognize(np.zeros((10, 2)), [tpl], cfg, seed=0)
     with pytest.raises(InputError):
         recognize(np.array([["a", "b", "c"]]), [tpl], cfg, seed=0)
+    with pytest.raises(InputError, match="scene_sigma_m"):
+        recognize(np.zeros((10, 3)), [tpl], cfg, seed=0, scene_sigma_m=np.zeros(9))
+
+
+def test_nan_sigma_drops_its_point_like_a_nan_position(small_template):
+    cfg, tpl = small_template
+    pts = np.random.default_rng(0).normal(size=(50, 3))
+    sigma = np.full(50, 0.1)
+    sigma[:5] = np.nan
+    res = recognize(pts, [tpl], cfg, seed=0, scene_sigma_m=sigma)
+    assert res.stats["dropped_nonfinite"] == 5
 
 
 @pytest.mark.slow

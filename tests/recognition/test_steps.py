@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from atr.errors import ConfigError, InputError
 from atr.recognition import (
@@ -20,6 +21,7 @@ from atr.recognition import (
     ransac_per_group,
     rigid_transform,
     uniform_subsample,
+    verify_with_icp,
 )
 from atr.recognition._backend import estimate_normals
 
@@ -296,3 +298,62 @@ def test_multi_view_template_slices_and_validation():
     bad["params"] = {"view_points": [10, 21], "view_keypoints": [5, 15]}
     with pytest.raises(InputError):
         Template.from_dict(bad)
+
+
+def _box_surface(spacing_m: float, offset_m: float = 0.0) -> np.ndarray:
+    """Top and two sides of a 6 x 3 x 2 m box, sampled on a grid of the given spacing."""
+    u = np.arange(offset_m, 6.0, spacing_m)
+    v = np.arange(offset_m, 3.0, spacing_m)
+    w = np.arange(offset_m, 2.0, spacing_m)
+    top = np.stack(np.meshgrid(u, v, [2.0], indexing="ij"), -1).reshape(-1, 3)
+    side = np.stack(np.meshgrid(u, [0.0], w, indexing="ij"), -1).reshape(-1, 3)
+    end = np.stack(np.meshgrid([0.0], v, w, indexing="ij"), -1).reshape(-1, 3)
+    return np.concatenate([top, side, end])
+
+
+def test_verify_overlap_follows_a_sparse_scene_spacing_but_not_a_dense_one():
+    model = _box_surface(0.3)
+    # a far target in a two-view cloud: the same surface, sampled every 0.9 m
+    sparse = _box_surface(0.9, offset_m=0.45)
+    v = verify_with_icp(model, sparse, np.eye(4), 0.6, 0.3, 0)
+    assert v.overlap >= 0.9
+    # at the fixed 0.3 m distance a 0.9 m grid explains under half of the model
+    hit = np.isfinite(cKDTree(sparse).query(model, distance_upper_bound=0.3)[0])
+    assert hit.mean() < 0.5
+    # a dense scene keeps the configured distance: a copy 0.4 m off every face does not overlap
+    dense_off = _box_surface(0.3) + 0.4
+    v_dense = verify_with_icp(model, dense_off, np.eye(4), 0.6, 0.3, 0)
+    assert v_dense.overlap < 0.5
+    # clutter keeps the fixed distance: a pole of sparse points 1 m inside the box is unexplained
+    pole = np.stack([np.full(3, 3.0), np.full(3, 1.5), [0.9, 1.2, 1.5]], -1)
+    v_pole = verify_with_icp(model, np.concatenate([sparse, pole]), np.eye(4), 0.6, 0.3, 0)
+    assert v_pole.clutter > v.clutter
+
+
+def test_verify_does_not_count_a_points_own_noise_as_clutter():
+    model = _box_surface(0.3)
+    rng = np.random.default_rng(0)
+    # the top face seen from far away: depth noise of 0.5 m (1 sigma), far beyond the 0.3 m overlap
+    top = model[model[:, 2] == 2.0]
+    noisy = top - np.array([0.0, 0.0, 0.5]) * np.abs(rng.normal(size=(len(top), 1)))
+    without = verify_with_icp(model, noisy, np.eye(4), 0.6, 0.3, 0)
+    sigma = np.full(len(noisy), 0.5)
+    with_sigma = verify_with_icp(
+        model, noisy, np.eye(4), 0.6, 0.3, 0, scene_sigma_m=sigma, k_clutter_sigma=2.0
+    )
+    assert without.clutter > 0.4
+    assert with_sigma.clutter < 0.1
+    # a precise point that lies off the model stays clutter however noisy the others are
+    pole = np.array([[3.0, 1.5, 1.0]])
+    sigma_pole = np.concatenate([sigma, [0.01]])
+    v = verify_with_icp(
+        model,
+        np.concatenate([noisy, pole]),
+        np.eye(4),
+        0.6,
+        0.3,
+        0,
+        scene_sigma_m=sigma_pole,
+        k_clutter_sigma=2.0,
+    )
+    assert v.clutter * (len(noisy) + 1) >= 1 - 1e-9
