@@ -52,6 +52,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--frames", type=int, help="only the first N frames of each run (N - 1 scenes)"
     )
     parser.add_argument(
+        "--every",
+        type=int,
+        default=1,
+        help="only every K-th scene of each run: a sample of the whole run (default 1: all)",
+    )
+    parser.add_argument(
         "--pipeline",
         action="append",
         help="gftt-sfm, surf-sfm, lidar, 2d-1..2d-4 (repeatable; default gftt-sfm)",
@@ -136,12 +142,17 @@ def _flights(args: argparse.Namespace) -> list[Any]:
                         noise,
                         args.target_mesh,
                         tuple(args.clutter_mesh),
+                        args.every,
                     )
                 )
     if not flights:
         raise ConfigError(f"no run of scenarios {scenarios} matches --run {args.run}")
     if args.frames is not None and args.frames < 2:
         raise ConfigError(f"--frames {args.frames} must be >= 2 (a scene is a pair of frames)")
+    if args.every > 1 and getattr(args, "via_services", False):
+        raise ConfigError(
+            f"--every {args.every} samples scenes in-process; --via-services replays whole flights"
+        )
     return flights
 
 
@@ -595,6 +606,7 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
                     | {
                         "seed": flight.seed,
                         "frames": flight.frames,
+                        "every": flight.every,
                         "target": flight.target,
                         "tn": s.counts.tn,
                         "range_m": sc.range_m,

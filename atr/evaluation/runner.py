@@ -50,6 +50,9 @@ class Flight:
         scenario: Table II scenario (1, 2, 3).
         run: run within the scenario, 1-based.
         frames: only the first N frames (None: the whole run); scenes are frames 1..N-1.
+        every: only every K-th scene (frames k with k % K == 0): a sample of the whole run, the scenes
+            without target included, at 1/K of the rendering cost. The IMU is integrated over every
+            frame, so each sampled scene's poses are the ones the full run gives it.
         seed: world seed (0 is reported; other seeds are for tuning).
         noise: noise spec ("none", "shot", "gaussian:10", "gaussian:30").
         target_mesh: mesh file replacing the T-72 (its template is built from the same file).
@@ -64,6 +67,15 @@ class Flight:
     noise: str = "none"
     target_mesh: str | None = None
     clutter_meshes: tuple[str, ...] = ()
+    every: int = 1
+
+    def __post_init__(self) -> None:
+        if self.every < 1:
+            raise ConfigError(f"every = {self.every} must be >= 1 (1 evaluates every scene)")
+
+    def is_scene(self, seq: int, gap: int) -> bool:
+        """Whether frame seq closes an evaluated scene (the pair (seq - gap, seq))."""
+        return seq >= gap and seq % self.every == 0
 
     @property
     def target(self) -> str:
@@ -207,13 +219,19 @@ def initial_nav_state(frame: SensorFrame) -> NavState:
 
 
 def flight_frames(flight: Flight, config: AtrConfig, lidar: bool) -> Iterable[SensorFrame]:
-    """The flight's simulated frames (what `atr simulate` records)."""
+    """The flight's simulated frames (what `atr simulate` records); with ``flight.every`` > 1 only the
+    sampled scenes' frames are rendered (the others carry IMU and truth only).
+    """
     from atr.io.mesh import load_mesh  # noqa: PLC0415 - Open3D file readers only when a file is given
 
     target = load_mesh(flight.target_mesh) if flight.target_mesh else None
     clutter = [load_mesh(p) for p in flight.clutter_meshes]
     name = Path(flight.target_mesh).stem if flight.target_mesh else None
     noise = None if flight.noise == "none" else flight.noise
+    gap = config.sfm.pair_gap_frames
+    render = None
+    if flight.every > 1:
+        render = lambda seq: flight.is_scene(seq, gap) or flight.is_scene(seq + gap, gap)  # noqa: E731
     return simulate_flight(
         scenario_preset(flight.scenario, flight.run),
         seed=flight.seed,
@@ -224,6 +242,7 @@ def flight_frames(flight: Flight, config: AtrConfig, lidar: bool) -> Iterable[Se
         noise=noise,
         config=config.sim,
         target_name=name,
+        render=render,
     )
 
 
@@ -233,10 +252,20 @@ def _recognize(
     config: AtrConfig,
     seed: int,
     viewpoint: np.ndarray,
+    sigma: np.ndarray | None = None,
 ) -> tuple[list[dict[str, Any]], dict[str, float]]:
-    # The cloud crosses the bus as float32 (PointCloud.points_m); the matcher widens it back.
+    # The cloud crosses the bus as float32 (PointCloud points_m, sigma_m); the matcher widens it back.
     scene = np.ascontiguousarray(points, np.float32).astype(np.float64)
-    result = recognize(scene, list(templates), config.recognition, seed=seed, viewpoint_m=viewpoint)
+    if sigma is not None:
+        sigma = np.ascontiguousarray(sigma, np.float32).astype(np.float64)
+    result = recognize(
+        scene,
+        list(templates),
+        config.recognition,
+        seed=seed,
+        viewpoint_m=viewpoint,
+        scene_sigma_m=sigma,
+    )
     return (
         [detection_dict(d.target, d.T_world_target, d.score) for d in result.detections],
         dict(result.stage_times_ms),
@@ -292,7 +321,7 @@ def run_flight(
             integrator.add_imu(frame.imu_t_ns.astype(np.int64), frame.gyro_radps, frame.accel_mps2)
         poses[k] = integrator.camera_pose(frame.stamp_ns)
         images[k] = frame.image
-        if k >= gap:
+        if flight.is_scene(k, gap):
             truth = truth_of(frame)
             clouds: dict[
                 str, tuple[Any, float]
@@ -379,7 +408,12 @@ def _scene(
             }
             points = len(cloud.points_world_m)
             detections, rec = _recognize(
-                cloud.points_world_m, templates_3d[arm.descriptor], config, k, poses[k][:3, 3]
+                cloud.points_world_m,
+                templates_3d[arm.descriptor],
+                config,
+                k,
+                poses[k][:3, 3],
+                cloud.sigma_m,
             )
             stages |= {k_: v for k_, v in rec.items() if k_ != "total"}
     except (

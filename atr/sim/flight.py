@@ -9,7 +9,7 @@ is at 1 s).
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -116,6 +116,7 @@ def simulate_flight(
     target_name: str | None = None,
     imu_noise: bool = True,
     world: World | None = None,
+    render: Callable[[int], bool] | None = None,
 ) -> Iterator[SensorFrame]:
     """Fly one scenario run and yield its frames in order.
 
@@ -133,6 +134,9 @@ def simulate_flight(
         built-in).
         imu_noise: add IMU bias, bias random walk and white noise (False: exact readings).
         world: a world already built for this scenario and seed (skips building it again).
+        render: which frames (by seq) to render (default: all). A frame it refuses carries an empty
+            (0, 0, 3) image and no LIDAR scan, only its IMU samples and truth: an evaluation that samples
+            scenes along a run still integrates the whole IMU stream. Every other value is unchanged.
 
     Yields:
         SensorFrame per frame.
@@ -176,14 +180,17 @@ def simulate_flight(
         T_world_imu[:3, :3] = st.R_world_imu[0]
         T_world_imu[:3, 3] = st.p_world[0]
         T_world_cam = T_world_imu @ T_imu_cam
-        lin, _ = renderer.render(T_world_cam)
-        image = to_srgb8(lin)
-        if spec.active:
+        rendered = render is None or render(seq)
+        image = np.zeros((0, 0, 3), np.uint8)
+        if rendered:
+            lin, _ = renderer.render(T_world_cam)
+            image = to_srgb8(lin)
+        if rendered and spec.active:
             image = noisy_image(
                 lin, image, spec, cfg.shot_noise_full_well, np.random.default_rng(stream + [2, seq])
             )
         cloud = None
-        if lidar:
+        if lidar and rendered:
             lrng = np.random.default_rng(stream + [3, seq])
             cloud = renderer.lidar_scan(
                 T_world_cam, scenario.lidar_resolution_m, scenario.range_m, lrng

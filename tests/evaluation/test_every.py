@@ -1,0 +1,75 @@
+"""`atr eval --every K` samples a run's scenes without changing them: each sampled scene gets the truth, cloud
+and detections the full run gives it (the IMU is integrated over the skipped frames; only their rendering is
+skipped)."""
+
+from __future__ import annotations
+
+import pytest
+
+from atr.errors import ConfigError
+from cli.main import build_parser
+
+# A 640x480 camera (half the focal length), one template, loosened acceptance so that there are detections
+# to compare (as test_services_identity.py).
+ARGS = [
+    "eval",
+    "--scenario",
+    "1",
+    "--run",
+    "4",
+    "--frames",
+    "7",
+    "--pipeline",
+    "gftt-sfm",
+    "--descriptor",
+    "fpfh",
+    "--set",
+    "sim.width_px=640",
+    "--set",
+    "sim.height_px=480",
+    "--set",
+    "sim.focal_px=1000",
+    "--set",
+    "pipeline.targets=[t72]",
+    "--set",
+    "recognition.min_overlap=0.05",
+    "--set",
+    "recognition.min_overlap_vertices=3",
+    "--set",
+    "recognition.max_clutter=1.0",
+    "--set",
+    "recognition.min_group_size=3",
+]
+
+
+def scenes(results, every: int):
+    from cli.evaluate import execute, plan  # noqa: PLC0415
+
+    p = plan(build_parser().parse_args([*ARGS, "--every", str(every), "--results", str(results)]))
+    out = execute(p)
+    assert len(out) == 1
+    return next(iter(out.values()))
+
+
+def test_every_third_scene_equals_the_full_runs_scenes(tmp_path):
+    full = scenes(tmp_path / "full", 1)
+    sampled = scenes(tmp_path / "sampled", 3)
+    assert [s.frame for s in full] == [1, 2, 3, 4, 5, 6]
+    assert [s.frame for s in sampled] == [3, 6]
+    by_frame = {s.frame: s for s in full}
+    assert any(s.detections for s in sampled), "the comparison must cover detections"
+    for s in sampled:
+        ref = by_frame[s.frame]
+        assert s.truth == ref.truth
+        assert s.cloud_points == ref.cloud_points > 0
+        assert s.detections == ref.detections
+
+
+def test_every_is_refused_with_the_service_graph(tmp_path):
+    from cli.evaluate import plan  # noqa: PLC0415
+
+    args = build_parser().parse_args(
+        [*ARGS, "--every", "2", "--via-services", "--results", str(tmp_path)]
+    )
+    with pytest.raises(ConfigError, match="--every 2"):
+        plan(args)
