@@ -3,6 +3,8 @@
 The evaluation uses world seed 0 (and others chosen there); this tuning set uses seeds 101-105 only.
 
     python bench/tune_recognition.py make  [--cache DIR] [--seeds 101 102 ...] [--pairs 2] [--lidar-every 3]
+                                           [--keep-images]
+    python bench/tune_recognition.py resfm --from DIR --cache DIR2 [--set sfm_field=value ...]
     python bench/tune_recognition.py eval  [--cache DIR] [--descriptor shot] [--source sfm|lidar]
                                            [--set field=value ...] [--scenario 1 ...] [--verbose]
 
@@ -10,7 +12,9 @@ The evaluation uses world seed 0 (and others chosen there); this tuning set uses
 simulator exactly as ``simulate_flight`` does (the same world, orbit, renderer and LIDAR generator seeds),
 reconstructs each pair with ``atr.sfm.reconstruct`` (true poses; the IMU poses are within millimetres) and
 stores one ``.npz`` per scene in the cache folder (default: ``atr_tuning`` in the system's temporary folder).
-Pairs are spread along each run so that the tuning set sees the target from all azimuths.
+Pairs are spread along each run so that the tuning set sees the target from all azimuths. With
+``--keep-images`` the image pairs are stored too, and ``resfm`` reconstructs them again with other SfM
+settings into another folder (comparing SfM settings by their effect on recognition, without rendering).
 
 ``eval`` builds the templates of the T-72 and its confusers (IFV, 6x6 truck) as the template store does,
 runs ``atr.recognition.recognize`` on every cached cloud and scores it with ``atr.evaluation.metrics``
@@ -131,6 +135,8 @@ def make(args: argparse.Namespace) -> None:
             }
             if lid is not None:
                 data["lidar_points_m"] = np.asarray(lid, np.float32)
+            if args.keep_images:
+                data |= {"image_a": img_a, "image_b": img_b, "T_a": T_a, "T_b": T_b, "K": cfg.K}
             np.savez_compressed(name, **data)
             n_done += 1
             print(
@@ -139,6 +145,31 @@ def make(args: argparse.Namespace) -> None:
                 flush=True,
             )
     print(f"made {n_done} scenes")
+
+
+def resfm(args: argparse.Namespace) -> None:
+    """Reconstruct every scene of --from (made with --keep-images) again with SfmConfig overrides."""
+    from atr.sfm import SfmConfig, reconstruct
+
+    sfm_cfg = SfmConfig(**parse_sets(args.set))
+    args.cache.mkdir(parents=True, exist_ok=True)
+    paths = sorted(args.source_cache.glob("s*_sc*_r*_p*.npz"))
+    if args.shard is not None:
+        paths = paths[args.shard[0] :: args.shard[1]]
+    for path in paths:
+        with np.load(path) as z:
+            data = {k: z[k] for k in z.files}
+        if "image_a" not in data:
+            raise SystemExit(f"{path.name} has no images; make it with --keep-images")
+        cloud = reconstruct(
+            data["image_a"], data["image_b"], data["K"], data["T_a"], data["T_b"], sfm_cfg
+        )
+        data["sfm_points_m"] = np.asarray(cloud.points_world_m, np.float32)
+        data["sfm_sigma_m"] = np.asarray(cloud.sigma_m, np.float32)
+        for key in ("image_a", "image_b"):  # the new cache keeps clouds only
+            data.pop(key)
+        np.savez_compressed(args.cache / path.name, **data)
+        print(f"{path.name}: {len(cloud.points_world_m)} sfm points", flush=True)
 
 
 # ---------------------------------------------------------------------------------------------- eval
@@ -303,6 +334,14 @@ def main() -> int:
         "--lidar-every", type=int, default=3, help="a LIDAR scan with every n-th pair (0: none)"
     )
     mk.add_argument("--shard", type=int, nargs=2, default=None, metavar=("I", "N"))
+    mk.add_argument(
+        "--keep-images", action="store_true", help="store the image pairs too (for resfm)"
+    )
+    rs = sub.add_parser("resfm")
+    rs.add_argument("--from", dest="source_cache", type=Path, required=True)
+    rs.add_argument("--cache", type=Path, required=True)
+    rs.add_argument("--set", nargs="*", default=[], help="SfmConfig overrides field=value")
+    rs.add_argument("--shard", type=int, nargs=2, default=None, metavar=("I", "N"))
     ev = sub.add_parser("eval")
     ev.add_argument("--cache", type=Path, default=DEFAULT_CACHE)
     ev.add_argument("--descriptor", default="shot")
@@ -316,7 +355,7 @@ def main() -> int:
     if any(s in (0,) for s in getattr(args, "seeds", [])):
         print("seed 0 is the evaluation world; the tuning set must not use it", file=sys.stderr)
         return 2
-    make(args) if args.cmd == "make" else eval_cmd(args)
+    {"make": make, "resfm": resfm, "eval": eval_cmd}[args.cmd](args)
     return 0
 
 

@@ -267,6 +267,10 @@ def build_report(
                 ["scenes per pipeline (no noise)", str(scenes)],
                 ["frames per run", str(sorted({r.get("frames") for r in details}, key=str))],
                 [
+                    "every K-th scene (`--every`)",
+                    str(sorted({r.get("every", 1) for r in details})),
+                ],
+                [
                     "camera",
                     f"{config['atr']['sim']['width_px']}x{config['atr']['sim']['height_px']} px, "
                     f"f = {config['atr']['sim']['focal_px']} px",
