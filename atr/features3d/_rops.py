@@ -270,7 +270,9 @@ def _rotation(axis, theta):
     return rot
 
 
-@numba.njit(cache=True)
+# IEEE division: a projection of zero extent (e.g. a flat, grid-aligned patch) gives inf/NaN bin
+# coordinates, which go to bin 0 below, instead of numba's ZeroDivisionError.
+@numba.njit(cache=True, error_model="numpy")
 def _projection_stats(cloud, mn, mx, u, v, nbins, out, pos):
     """Distribution matrix of the (u, v) projection, then μ11, μ21, μ12, μ22 and entropy into out[pos:pos+5]."""
     n = cloud.shape[0]

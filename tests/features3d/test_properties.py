@@ -135,3 +135,16 @@ def test_unknown_descriptor_is_a_config_error(scene):
     pts, normals, kp = scene
     with pytest.raises(ConfigError, match="not one of"):
         describe("sift3d", pts, normals, kp, RADIUS)
+
+
+@pytest.mark.parametrize("name", DESCRIPTOR_NAMES)
+def test_flat_grid_patch_is_described_without_error(name):
+    """A voxel-subsampled flat roof: every point shares one height, so a projection onto an axis has zero
+    extent. That is a degenerate neighbourhood, not an error: finite values or a NaN row, never an exception."""
+    _need(name)
+    g = np.arange(-1.5, 1.51, 0.3)
+    pts = np.stack(np.meshgrid(g, g, [2.0], indexing="ij"), -1).reshape(-1, 3)
+    normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    desc = describe(name, pts, normals, np.arange(len(pts)), 1.0, **_params(name))
+    assert desc.shape == (len(pts), DESCRIPTOR_LENGTHS[name])
+    assert np.all(np.isfinite(desc).all(axis=1) | np.isnan(desc).all(axis=1))
