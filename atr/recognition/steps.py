@@ -18,6 +18,7 @@ import open3d as o3d
 from scipy.spatial import cKDTree
 
 from atr.errors import InputError
+from atr.recognition import _kernels
 
 
 def uniform_subsample(points: np.ndarray, leaf_m: float) -> np.ndarray:
@@ -166,30 +167,23 @@ def knndr_from_distances(
     """KNNDR on a precomputed (S, M) squared-distance matrix (see ``match_knndr``).
 
     Rows or columns with non-finite distances (NaN descriptors) are ignored.
+
+    Raises:
+        InputError: ``k`` < 1, or ``ratio`` > 1 (the result would depend on how ties are broken).
+
     """
+    if k < 1 or ratio > 1:
+        raise InputError(f"kNNDR needs k >= 1 and ratio <= 1; got k = {k}, ratio = {ratio}")
     empty = Correspondences(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
     if d2.ndim != 2 or d2.shape[0] == 0 or d2.shape[1] < 2:
         return empty
-    row_ok = np.isfinite(d2).any(axis=1)
-    col_ok = np.isfinite(d2).any(axis=0)
-    s_ok, m_ok = np.flatnonzero(row_ok), np.flatnonzero(col_ok)
-    if len(s_ok) == 0 or len(m_ok) < 2:
-        return empty
-    if len(s_ok) < d2.shape[0] or len(m_ok) < d2.shape[1]:
-        d2 = d2[np.ix_(s_ok, m_ok)]
-    kk = min(k, d2.shape[1])
-    part = np.argpartition(d2, kk - 1, axis=1)[:, :kk]
-    pd = np.take_along_axis(d2, part, axis=1)
-    order = np.lexsort((part, pd), axis=1)
-    nn = np.take_along_axis(part, order, axis=1)
-    dist = np.sqrt(np.take_along_axis(pd, order, axis=1).astype(np.float64))
-    keep = dist[:, :-1] < ratio * dist[:, -1:]
-    rows, cols = np.nonzero(keep)
-    sc, mo, di = s_ok[rows], m_ok[nn[rows, cols]], dist[rows, cols]
-    o = np.lexsort((mo, sc, di))
+    sc, mo, di = _kernels.knndr_pairs(d2, int(k), float(ratio))
+    # best first, ties by scene then model index (the kernel's order, which a stable sort keeps)
+    o = np.argsort(di)
+    _kernels.make_stable(o, di[o])
     if max_correspondences is not None:
         o = o[:max_correspondences]
-    return Correspondences(sc[o].astype(np.int64), mo[o].astype(np.int64), di[o])
+    return Correspondences(sc[o], mo[o], di[o])
 
 
 def match_knndr(
@@ -365,48 +359,46 @@ def group_upright_hough(
     n_bins = max(1, int(round(2 * np.pi / yaw_bin_rad)))
     centres = (np.arange(n_bins) + 0.5) * (2 * np.pi / n_bins)
     if yaw_centre_rad is None:
-        ci = np.repeat(ok, n_bins)
-        bi = np.tile(np.arange(n_bins), len(ok))
+        window = np.ones((len(ok), n_bins), np.int8)
     else:
-        diff = np.angle(np.exp(1j * (centres[None, :] - np.asarray(yaw_centre_rad)[ok, None])))
-        rows, bi = np.nonzero(np.abs(diff) <= yaw_half_width_rad + 0.5 * (2 * np.pi / n_bins))
-        ci = ok[rows]
+        limit = yaw_half_width_rad + 0.5 * (2 * np.pi / n_bins)
+        yaw = np.asarray(yaw_centre_rad, np.float64)[ok]
+        window = _kernels.yaw_window(yaw, centres, limit)
+        if (window < 0).any():  # too close to call arithmetically: the exact rule decides
+            r, b = np.nonzero(window < 0)
+            window[r, b] = np.abs(np.angle(np.exp(1j * (centres[b] - yaw[r])))) <= limit
+    ci, bi, gx, gy, bin_start = _kernels.hough_votes(
+        np.ascontiguousarray(s),
+        np.ascontiguousarray(m),
+        ok,
+        window,
+        np.cos(centres),
+        np.sin(centres),
+        float(cell_m),
+    )
     if len(ci) == 0:
         return []
-    c, sn = np.cos(centres[bi]), np.sin(centres[bi])
-    tx = s[ci, 0] - (c * m[ci, 0] - sn * m[ci, 1])
-    ty = s[ci, 1] - (sn * m[ci, 0] + c * m[ci, 1])
-    gx = np.floor(tx / cell_m).astype(np.int64)
-    gy = np.floor(ty / cell_m).astype(np.int64)
-    gx -= gx.min()
-    gy -= gy.min()
-    ny = int(gy.max()) + 3
-    nx = int(gx.max()) + 3
-    key = (bi * nx + gx) * ny + gy
-    # each correspondence counts once per cell (it may vote twice there from neighbouring bins)
-    pair = np.unique(key * len(corr) + ci)
-    cell_keys, counts = np.unique(pair // len(corr), return_counts=True)
-    order = np.lexsort((cell_keys, -counts))
-    groups: list[np.ndarray] = []
-    used_cells: list[tuple[int, int, int]] = []
-    for o in order:
-        if counts[o] < min_size or (max_groups is not None and len(groups) >= max_groups):
-            break
-        k = int(cell_keys[o])
-        b, rest = divmod(k, nx * ny)
-        x, y = divmod(rest, ny)
-        if any(
-            min(abs(b - ub), n_bins - abs(b - ub)) <= 1 and abs(x - ux) <= 1 and abs(y - uy) <= 1
-            for ub, ux, uy in used_cells
-        ):
-            continue
-        used_cells.append((b, x, y))
-        db = np.abs(bi - b)
-        near = (np.minimum(db, n_bins - db) <= 1) & (np.abs(gx - x) <= 1) & (np.abs(gy - y) <= 1)
-        members = np.unique(ci[near])
-        if len(members) >= min_size:
-            groups.append(members.astype(np.int64))
-    groups.sort(key=lambda g: -len(g))
+    # A correspondence votes at most once per bin, so a cell's votes are distinct correspondences.
+    # The key orders cells by (bin, x, y); peaks are taken most votes first, ties in key order.
+    nx, ny = int(gx.max()) + 1, int(gy.max()) + 1
+    cells, counts = _kernels.count_runs(np.sort((bi * nx + gx) * ny + gy), min_size)
+    peaks = cells[np.argsort(-counts, kind="stable")]
+    peak_b, rest = np.divmod(peaks, nx * ny)
+    peak_x, peak_y = np.divmod(rest, ny)
+    members, sizes = _kernels.claim_hough_groups(
+        ci,
+        gx,
+        gy,
+        bin_start,
+        peak_b,
+        peak_x,
+        peak_y,
+        len(corr),
+        min_size,
+        -1 if max_groups is None else max_groups,
+    )
+    groups = np.split(members, np.cumsum(sizes)[:-1]) if len(sizes) else []
+    groups.sort(key=lambda g: -len(g))  # stable: equal sizes keep peak order
     return groups
 
 
@@ -439,24 +431,6 @@ class Hypothesis:
     group_size: int
 
 
-@numba.njit(cache=True)
-def _ransac_counts(R, t, m, s, inlier2):  # pragma: no cover - compiled
-    """Inliers of each candidate transform (R[i], t[i]) over all correspondences (m -> s)."""
-    n_it, n = R.shape[0], m.shape[0]
-    counts = np.zeros(n_it, np.int64)
-    for i in range(n_it):
-        c = 0
-        for j in range(n):
-            d2 = 0.0
-            for a in range(3):
-                p = R[i, a, 0] * m[j, 0] + R[i, a, 1] * m[j, 1] + R[i, a, 2] * m[j, 2] + t[i, a]
-                d2 += (p - s[j, a]) ** 2
-            if d2 < inlier2:
-                c += 1
-        counts[i] = c
-    return counts
-
-
 def ransac_per_group(
     scene_keypoints: np.ndarray,
     model_keypoints: np.ndarray,
@@ -485,25 +459,17 @@ def ransac_per_group(
     idx = idx[ok]
     if len(idx) == 0:
         return None
-    ms, ss = m[idx], s[idx]  # (I, 3, 3)
-    mc, sc = ms.mean(1, keepdims=True), ss.mean(1, keepdims=True)
-    H = np.einsum("ikj,ikl->ijl", ms - mc, ss - sc)
+    mc, sc, H = _kernels.sample_cross_covariances(m, s, idx)
     U, _, Vt = np.linalg.svd(H)
-    det = np.linalg.det(np.einsum("ikj,ilk->ijl", Vt, U))  # det(V U^T)
-    Vt_fix = Vt.copy()
-    Vt_fix[:, 2, :] *= np.where(det < 0, -1.0, 1.0)[:, None]
-    R = np.einsum("ikj,ilk->ijl", Vt_fix, U)  # V D U^T
-    t = sc[:, 0, :] - np.einsum("ijk,ik->ij", R, mc[:, 0, :])
-    counts = _ransac_counts(
-        np.ascontiguousarray(R), np.ascontiguousarray(t), m, s, float(inlier_m) ** 2
-    )
-    best = int(np.argmax(counts))  # first maximum: deterministic
-    if counts[best] < 3:
+    R, t = _kernels.kabsch_poses(U, Vt, mc, sc)
+    best, best_count = _kernels.most_inliers(R, t, m, s, float(inlier_m) ** 2)
+    if best_count < 3:
         return None
-    mask = np.sum(((m @ R[best].T + t[best]) - s) ** 2, axis=1) < inlier_m**2
+    R_best_T = np.ascontiguousarray(R[best].T)  # C order as before: BLAS rounds by layout
+    mask = np.sum(((m @ R_best_T + t[best]) - s) ** 2, axis=1) < inlier_m**2
     T = rigid_transform(m[mask], s[mask])
     final = np.sum(((m @ T[:3, :3].T + T[:3, 3]) - s) ** 2, axis=1) < inlier_m**2
-    return Hypothesis(T_scene_model=T, inliers=int(max(final.sum(), counts[best])), group_size=n)
+    return Hypothesis(T_scene_model=T, inliers=int(max(final.sum(), best_count)), group_size=n)
 
 
 @dataclass(frozen=True)

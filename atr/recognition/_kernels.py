@@ -1,0 +1,398 @@
+"""Compiled hot loops of the matcher's steps (``atr.recognition.steps``).
+
+Each kernel returns, bit for bit, what the numpy code it replaced returned (that code is kept as the
+oracle in tests/recognition/test_steps_identical.py): floating-point results come from the same
+operations in the same order (numba neither reassociates nor fuses them without ``fastmath``), so
+the matcher's detections, a determinism contract, did not change. numpy keeps what cannot be
+reproduced that way: the batched SVD, and trigonometry where a comparison could go either way.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+# ------------------------------------------------------------------------------ kNNDR matching
+
+
+@numba.njit(cache=True)
+def _finite_columns(d2: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """Indices of the columns holding any finite entry (rows are read until every column has one)."""
+    n_rows, n_cols = d2.shape
+    ok = np.zeros(n_cols, np.bool_)
+    n_ok = 0
+    for i in range(n_rows):
+        for j in range(n_cols):
+            if not ok[j] and np.isfinite(d2[i, j]):
+                ok[j] = True
+                n_ok += 1
+        if n_ok == n_cols:
+            break
+    return np.flatnonzero(ok)
+
+
+@numba.njit(cache=True)
+def knndr_pairs(
+    d2: np.ndarray, k: int, ratio: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """Entries of a squared-distance matrix kept by the kNNDR rule (k >= 1, ratio <= 1).
+
+    Columns without any finite entry take no part. In each row, let d_k be the k-th smallest entry
+    (k capped at the columns taking part; NaN after every number): an entry is kept when
+    sqrt(d) < ratio sqrt(d_k). Such an entry is strictly below d_k (ratio <= 1), so it is one of the
+    k nearest however ties at d_k are broken. A row without finite entries keeps nothing.
+
+    Returns:
+        rows, columns and distances (float64 sqrt of the entry) of the kept entries, ordered by row,
+        then column.
+
+    """
+    cols = _finite_columns(d2)
+    kk = min(k, cols.shape[0])
+    cap = d2.shape[0] * max(kk - 1, 0)
+    out_rows = np.empty(cap, np.int64)
+    out_cols = np.empty(cap, np.int64)
+    out_dist = np.empty(cap, np.float64)
+    n_out = 0
+    near_d = np.empty(max(kk, 1), d2.dtype)  # the row's kk smallest entries so far, ascending
+    near_j = np.empty(max(kk, 1), np.int64)
+    for i in range(d2.shape[0]):
+        n_near = 0
+        for j in cols:
+            x = d2[i, j]
+            if n_near == kk:
+                if not x < near_d[kk - 1]:  # also NaN
+                    continue
+                pos = kk - 1
+            elif np.isnan(x):
+                continue
+            else:
+                pos = n_near
+                n_near += 1
+            while pos > 0 and x < near_d[pos - 1]:
+                near_d[pos] = near_d[pos - 1]
+                near_j[pos] = near_j[pos - 1]
+                pos -= 1
+            near_d[pos] = x
+            near_j[pos] = j
+        if n_near < kk or kk < 2:  # the k-th is NaN (nothing passes), or nothing lies below it
+            continue
+        limit = ratio * np.sqrt(np.float64(near_d[kk - 1]))
+        first = n_out
+        for q in range(kk - 1):
+            dist = np.sqrt(np.float64(near_d[q]))
+            if dist < limit:
+                pos = n_out  # keep the row's entries in column order
+                while pos > first and out_cols[pos - 1] > near_j[q]:
+                    out_cols[pos] = out_cols[pos - 1]
+                    out_dist[pos] = out_dist[pos - 1]
+                    pos -= 1
+                out_rows[n_out] = i
+                out_cols[pos] = near_j[q]
+                out_dist[pos] = dist
+                n_out += 1
+    return out_rows[:n_out], out_cols[:n_out], out_dist[:n_out]
+
+
+@numba.njit(cache=True)
+def make_stable(order: np.ndarray, sorted_values: np.ndarray) -> None:  # pragma: no cover
+    """Turn an argsort into a stable one in place: indices ascending within runs of equal values."""
+    start = 0
+    n = order.shape[0]
+    for i in range(1, n + 1):
+        if i == n or sorted_values[i] != sorted_values[start]:
+            if i - start > 1:
+                order[start:i] = np.sort(order[start:i])
+            start = i
+
+
+# ------------------------------------------------------------------------------ upright Hough grouping
+
+
+_TWO_PI = 2 * np.pi
+_WINDOW_MARGIN_RAD = 1e-9  # far above the ~1e-13 rad error of the arithmetic wrap below
+_WINDOW_RANGE_RAD = 1e3  # differences up to this size wrap with that accuracy
+
+
+@numba.njit(cache=True)
+def yaw_window(
+    yaw: np.ndarray, centres: np.ndarray, limit: float
+) -> np.ndarray:  # pragma: no cover
+    """Whether each heading-bin centre lies within ``limit`` of each expected heading, on the circle.
+
+    The rule is |angle(exp(1j (centre - yaw)))| <= limit with numpy's complex exp and arctan2, which
+    cost more than the rest of the grouping; here the difference is wrapped arithmetically instead.
+    Where that could decide otherwise (within a margin of the limit, huge or NaN differences) the
+    entry is -1 and the caller evaluates the numpy rule.
+
+    Returns:
+        (len(yaw), len(centres)) int8: 1 inside, 0 outside, -1 undecided.
+
+    """
+    out = np.empty((yaw.shape[0], centres.shape[0]), np.int8)
+    for r in range(yaw.shape[0]):
+        for b in range(centres.shape[0]):
+            x = centres[b] - yaw[r]
+            if not abs(x) < _WINDOW_RANGE_RAD:  # also NaN
+                out[r, b] = -1
+                continue
+            d = abs(x - _TWO_PI * np.round(x / _TWO_PI))
+            if d < limit - _WINDOW_MARGIN_RAD:
+                out[r, b] = 1
+            elif d > limit + _WINDOW_MARGIN_RAD:
+                out[r, b] = 0
+            else:
+                out[r, b] = -1
+    return out
+
+
+@numba.njit(cache=True)
+def hough_votes(
+    s: np.ndarray,
+    m: np.ndarray,
+    rows: np.ndarray,
+    window: np.ndarray,
+    cos_bin: np.ndarray,
+    sin_bin: np.ndarray,
+    cell_m: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
+    """Votes of correspondences in an upright-pose (heading bin, x cell, y cell) accumulator.
+
+    Correspondence c = ``rows[r]`` votes in every heading bin b with ``window[r, b]``, for the cell of
+    the target origin s_xy - R(b) m_xy.
+
+    Returns:
+        per vote: correspondence, bin, x cell, y cell (cells shifted so that the smallest is 0); votes
+        are ordered by bin, those of bin b are ``bin_start[b]:bin_start[b + 1]``.
+
+    """
+    n_rows, n_bins = window.shape
+    bin_start = np.zeros(n_bins + 1, np.int64)
+    for b in range(n_bins):
+        bin_start[b + 1] = bin_start[b]
+        for r in range(n_rows):
+            bin_start[b + 1] += window[r, b] != 0
+    n_votes = bin_start[n_bins]
+    ci = np.empty(n_votes, np.int64)
+    bi = np.empty(n_votes, np.int64)
+    gx = np.empty(n_votes, np.int64)
+    gy = np.empty(n_votes, np.int64)
+    v = 0
+    for b in range(n_bins):
+        for r in range(n_rows):
+            if window[r, b] == 0:
+                continue
+            c = rows[r]
+            tx = s[c, 0] - (cos_bin[b] * m[c, 0] - sin_bin[b] * m[c, 1])
+            ty = s[c, 1] - (sin_bin[b] * m[c, 0] + cos_bin[b] * m[c, 1])
+            ci[v] = c
+            bi[v] = b
+            gx[v] = np.int64(np.floor(tx / cell_m))
+            gy[v] = np.int64(np.floor(ty / cell_m))
+            v += 1
+    if n_votes:
+        gx -= gx.min()
+        gy -= gy.min()
+    return ci, bi, gx, gy, bin_start
+
+
+@numba.njit(cache=True)
+def count_runs(
+    sorted_keys: np.ndarray, min_count: int
+) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
+    """Distinct values of a sorted array that occur at least ``min_count`` times, and their counts."""
+    n = sorted_keys.shape[0]
+    keys = np.empty(n, np.int64)
+    counts = np.empty(n, np.int64)
+    k = 0
+    start = 0
+    for i in range(1, n + 1):
+        if i == n or sorted_keys[i] != sorted_keys[start]:
+            if i - start >= min_count:
+                keys[k] = sorted_keys[start]
+                counts[k] = i - start
+                k += 1
+            start = i
+    return keys[:k], counts[:k]
+
+
+@numba.njit(cache=True)
+def _bin_distance(a: int, b: int, n_bins: int) -> int:  # pragma: no cover - compiled
+    """Distance between two heading bins on the circle of ``n_bins`` bins."""
+    d = abs(a - b)
+    return min(d, n_bins - d)
+
+
+@numba.njit(cache=True)
+def claim_hough_groups(
+    ci: np.ndarray,
+    gx: np.ndarray,
+    gy: np.ndarray,
+    bin_start: np.ndarray,
+    peak_b: np.ndarray,
+    peak_x: np.ndarray,
+    peak_y: np.ndarray,
+    n_corr: int,
+    min_size: int,
+    max_groups: int,
+) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """Groups of the accumulator's peaks (votes as from ``hough_votes``), strongest peak first.
+
+    A peak (bin, x, y) whose 3 x 3 x 3 neighbourhood (bins on the circle) touches an earlier peak's is
+    skipped; otherwise its group is every correspondence voting in that neighbourhood (ascending, each
+    once). Stops after ``max_groups`` groups (< 0: no limit).
+
+    Returns:
+        the groups' members one after the other, and each group's size.
+
+    """
+    n_bins = bin_start.shape[0] - 1
+    members = np.empty(0, np.int64)
+    sizes = np.empty(0, np.int64)
+    in_group = np.zeros(n_corr, np.bool_)
+    found = np.empty(ci.shape[0], np.int64)
+    claimed = np.empty(peak_b.shape[0], np.int64)
+    n_claimed = 0
+    for p in range(peak_b.shape[0]):
+        if max_groups >= 0 and sizes.shape[0] >= max_groups:
+            break
+        b, x, y = peak_b[p], peak_x[p], peak_y[p]
+        clash = False
+        for q in claimed[:n_claimed]:
+            if (
+                _bin_distance(b, peak_b[q], n_bins) <= 1
+                and abs(x - peak_x[q]) <= 1
+                and abs(y - peak_y[q]) <= 1
+            ):
+                clash = True
+                break
+        if clash:
+            continue
+        claimed[n_claimed] = p
+        n_claimed += 1
+        n_found = 0
+        for bb in range(n_bins):
+            if _bin_distance(bb, b, n_bins) > 1:
+                continue
+            for v in range(bin_start[bb], bin_start[bb + 1]):
+                if abs(gx[v] - x) <= 1 and abs(gy[v] - y) <= 1 and not in_group[ci[v]]:
+                    in_group[ci[v]] = True
+                    found[n_found] = ci[v]
+                    n_found += 1
+        group = np.sort(found[:n_found])
+        in_group[group] = False
+        if group.shape[0] >= min_size:
+            members = np.concatenate((members, group))
+            sizes = np.append(sizes, group.shape[0])
+    return members, sizes
+
+
+# ------------------------------------------------------------------------------ RANSAC on a group
+
+
+@numba.njit(cache=True)
+def sample_cross_covariances(
+    m: np.ndarray, s: np.ndarray, samples: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """Centroids and Kabsch cross-covariance of each sample of correspondences (model m -> scene s).
+
+    Sample i is the correspondences ``samples[i]`` (3 of them). Sums run in index order from 0.0, as
+    numpy's mean over the sample axis and einsum("ikj,ikl->ijl") do.
+
+    Returns:
+        (I, 3) model centroids, (I, 3) scene centroids, (I, 3, 3) H = sum_k (m_k - mc)^T (s_k - sc).
+
+    """
+    n_samples, k_pts = samples.shape
+    mc = np.empty((n_samples, 3))
+    sc = np.empty((n_samples, 3))
+    H = np.empty((n_samples, 3, 3))
+    for i in range(n_samples):
+        for a in range(3):
+            msum = 0.0
+            ssum = 0.0
+            for k in range(k_pts):
+                msum += m[samples[i, k], a]
+                ssum += s[samples[i, k], a]
+            mc[i, a] = msum / k_pts
+            sc[i, a] = ssum / k_pts
+        for j in range(3):
+            for col in range(3):
+                acc = 0.0
+                for k in range(k_pts):
+                    acc += (m[samples[i, k], j] - mc[i, j]) * (s[samples[i, k], col] - sc[i, col])
+                H[i, j, col] = acc
+    return mc, sc, H
+
+
+@numba.njit(cache=True)
+def _det3(a: np.ndarray) -> float:  # pragma: no cover - compiled
+    return (
+        a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1])
+        - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
+        + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0])
+    )
+
+
+@numba.njit(cache=True)
+def kabsch_poses(
+    U: np.ndarray, Vt: np.ndarray, mc: np.ndarray, sc: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """Rotations R = V D U^T and translations t = sc - R mc from the SVDs H = U S Vt.
+
+    D = diag(1, 1, sign det(V U^T)) avoids reflections. U and V are orthogonal to rounding, so
+    det(V) det(U) is +-1 within ~1e-15 and has the sign of any accurate det(V U^T).
+    Sums run in index order from 0.0, as numpy's einsum does.
+
+    Returns:
+        (I, 3, 3) rotations, (I, 3) translations.
+
+    """
+    n = U.shape[0]
+    R = np.empty((n, 3, 3))
+    t = np.empty((n, 3))
+    for i in range(n):
+        flip = -1.0 if _det3(Vt[i]) * _det3(U[i]) < 0 else 1.0
+        for j in range(3):
+            for col in range(3):
+                acc = 0.0
+                for k in range(3):
+                    v = Vt[i, k, j] * flip if k == 2 else Vt[i, k, j]
+                    acc += v * U[i, col, k]
+                R[i, j, col] = acc
+        for j in range(3):
+            acc = 0.0
+            for k in range(3):
+                acc += R[i, j, k] * mc[i, k]
+            t[i, j] = sc[i, j] - acc
+    return R, t
+
+
+@numba.njit(cache=True)
+def most_inliers(
+    R: np.ndarray, t: np.ndarray, m: np.ndarray, s: np.ndarray, inlier2: float
+) -> tuple[int, int]:  # pragma: no cover - compiled
+    """The candidate transform (R[i], t[i]) with most inliers m -> s (squared residual < inlier2).
+
+    Returns:
+        the first candidate with most inliers and its inlier count (-1, -1 without candidates).
+
+    """
+    # one contiguous array per coordinate, so that the loop over correspondences vectorises
+    mx, my, mz = m[:, 0].copy(), m[:, 1].copy(), m[:, 2].copy()
+    sx, sy, sz = s[:, 0].copy(), s[:, 1].copy(), s[:, 2].copy()
+    best, best_count = -1, -1
+    for i in range(R.shape[0]):
+        r00, r01, r02, t0 = R[i, 0, 0], R[i, 0, 1], R[i, 0, 2], t[i, 0]
+        r10, r11, r12, t1 = R[i, 1, 0], R[i, 1, 1], R[i, 1, 2], t[i, 1]
+        r20, r21, r22, t2 = R[i, 2, 0], R[i, 2, 1], R[i, 2, 2], t[i, 2]
+        count = 0
+        for j in range(m.shape[0]):
+            d2 = 0.0
+            d2 += (r00 * mx[j] + r01 * my[j] + r02 * mz[j] + t0 - sx[j]) ** 2
+            d2 += (r10 * mx[j] + r11 * my[j] + r12 * mz[j] + t1 - sy[j]) ** 2
+            d2 += (r20 * mx[j] + r21 * my[j] + r22 * mz[j] + t2 - sz[j]) ** 2
+            count += d2 < inlier2
+        if count > best_count:
+            best, best_count = i, count
+    return best, best_count
