@@ -16,7 +16,7 @@ import numpy as np
 
 
 @numba.njit(cache=True)
-def _finite_columns(d2: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+def finite_columns(d2: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
     """Indices of the columns holding any finite entry (rows are read until every column has one)."""
     n_rows, n_cols = d2.shape
     ok = np.zeros(n_cols, np.bool_)
@@ -32,65 +32,40 @@ def _finite_columns(d2: np.ndarray) -> np.ndarray:  # pragma: no cover - compile
 
 
 @numba.njit(cache=True)
-def knndr_pairs(
-    d2: np.ndarray, k: int, ratio: float
+def knndr_keep(
+    d2: np.ndarray, d_k: np.ndarray, k: int, ratio: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    """Entries of a squared-distance matrix kept by the kNNDR rule (k >= 1, ratio <= 1).
+    """Entries of a squared-distance matrix kept by the kNNDR rule, given each row's k-th smallest.
 
-    Columns without any finite entry take no part. In each row, let d_k be the k-th smallest entry
-    (k capped at the columns taking part; NaN after every number): an entry is kept when
-    sqrt(d) < ratio sqrt(d_k). Such an entry is strictly below d_k (ratio <= 1), so it is one of the
-    k nearest however ties at d_k are broken. A row without finite entries keeps nothing.
+    Entry (i, j) is kept when sqrt(d2[i, j]) < ratio sqrt(d_k[i]). With ratio <= 1 it is then
+    strictly below the k-th smallest d_k[i], so it is one of the row's k nearest however ties at d_k
+    are broken, and a row keeps at most k - 1 entries.
 
     Returns:
         rows, columns and distances (float64 sqrt of the entry) of the kept entries, ordered by row,
         then column.
 
     """
-    cols = _finite_columns(d2)
-    kk = min(k, cols.shape[0])
-    cap = d2.shape[0] * max(kk - 1, 0)
+    n_rows, n_cols = d2.shape
+    cap = n_rows * max(k - 1, 0)
     out_rows = np.empty(cap, np.int64)
     out_cols = np.empty(cap, np.int64)
     out_dist = np.empty(cap, np.float64)
     n_out = 0
-    near_d = np.empty(max(kk, 1), d2.dtype)  # the row's kk smallest entries so far, ascending
-    near_j = np.empty(max(kk, 1), np.int64)
-    for i in range(d2.shape[0]):
-        n_near = 0
-        for j in cols:
-            x = d2[i, j]
-            if n_near == kk:
-                if not x < near_d[kk - 1]:  # also NaN
-                    continue
-                pos = kk - 1
-            elif np.isnan(x):
-                continue
-            else:
-                pos = n_near
-                n_near += 1
-            while pos > 0 and x < near_d[pos - 1]:
-                near_d[pos] = near_d[pos - 1]
-                near_j[pos] = near_j[pos - 1]
-                pos -= 1
-            near_d[pos] = x
-            near_j[pos] = j
-        if n_near < kk or kk < 2:  # the k-th is NaN (nothing passes), or nothing lies below it
-            continue
-        limit = ratio * np.sqrt(np.float64(near_d[kk - 1]))
-        first = n_out
-        for q in range(kk - 1):
-            dist = np.sqrt(np.float64(near_d[q]))
-            if dist < limit:
-                pos = n_out  # keep the row's entries in column order
-                while pos > first and out_cols[pos - 1] > near_j[q]:
-                    out_cols[pos] = out_cols[pos - 1]
-                    out_dist[pos] = out_dist[pos - 1]
-                    pos -= 1
-                out_rows[n_out] = i
-                out_cols[pos] = near_j[q]
-                out_dist[pos] = dist
-                n_out += 1
+    for i in range(n_rows):
+        kth = d_k[i]
+        limit = ratio * np.sqrt(np.float64(kth))
+        row_start = n_out
+        for j in range(n_cols):
+            if d2[i, j] < kth:  # implied by the rule, and cheaper to test
+                dist = np.sqrt(np.float64(d2[i, j]))
+                if dist < limit:
+                    if n_out - row_start == k - 1:
+                        raise ValueError("d_k is not the k-th smallest entry of its row")
+                    out_rows[n_out] = i
+                    out_cols[n_out] = j
+                    out_dist[n_out] = dist
+                    n_out += 1
     return out_rows[:n_out], out_cols[:n_out], out_dist[:n_out]
 
 

@@ -437,6 +437,13 @@ def _match_views(
     out: list[Correspondences] = [
         Correspondences(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)) for _ in views
     ]
+
+    def take(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """a[idx]; a slice (no copy of the descriptors) when idx is a run of consecutive rows."""
+        if len(idx) and np.array_equal(idx, np.arange(idx[0], idx[0] + len(idx))):
+            return a[idx[0] : idx[0] + len(idx)]
+        return a[idx]
+
     view_el_arr = np.asarray(view_el, np.float64)
     for ring in np.unique(ring_of_vertex):
         rows = np.flatnonzero(ring_of_vertex == ring)
@@ -445,7 +452,7 @@ def _match_views(
             continue
         cols = np.concatenate([np.arange(views[v][1].start, views[v][1].stop) for v in in_ring])
         owner = np.concatenate([np.full(views[v][1].stop - views[v][1].start, v) for v in in_ring])
-        d2 = descriptor_sq_distances(scene_desc[rows], model_desc[cols])
+        d2 = descriptor_sq_distances(take(scene_desc, rows), take(model_desc, cols))
         if config.knn_across_views:
             c = knndr_from_distances(d2, config.knndr_k, config.knndr_ratio)
             for v in in_ring:

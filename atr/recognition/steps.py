@@ -177,7 +177,16 @@ def knndr_from_distances(
     empty = Correspondences(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
     if d2.ndim != 2 or d2.shape[0] == 0 or d2.shape[1] < 2:
         return empty
-    sc, mo, di = _kernels.knndr_pairs(d2, int(k), float(ratio))
+    cols = _kernels.finite_columns(d2)  # columns of NaN descriptors take no part
+    kk = min(k, len(cols))
+    if kk < 2:  # nothing lies below the nearest
+        return empty
+    if len(cols) < d2.shape[1]:
+        d2 = d2[:, cols]
+    # Each row's k-th smallest distance (NaN last): its value does not depend on how ties are broken.
+    d_k = np.partition(d2, kk - 1, axis=1)[:, kk - 1]
+    sc, mo, di = _kernels.knndr_keep(d2, d_k, kk, float(ratio))
+    mo = cols[mo]
     # best first, ties by scene then model index (the kernel's order, which a stable sort keeps)
     o = np.argsort(di)
     _kernels.make_stable(o, di[o])

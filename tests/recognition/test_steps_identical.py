@@ -13,12 +13,15 @@ import pytest
 from atr.errors import InputError
 from atr.recognition import (
     Correspondences,
+    RecognitionConfig,
     _kernels,
+    descriptor_sq_distances,
     group_upright_hough,
     knndr_from_distances,
     ransac_per_group,
     rigid_transform,
 )
+from atr.recognition.matcher import _match_views
 
 # ------------------------------------------------------------------------------ references
 
@@ -167,6 +170,41 @@ def reference_ransac(scene_keypoints, model_keypoints, corr, group, iterations, 
     return (T, int(max(final.sum(), counts[best])), n)
 
 
+def reference_match_views(scene_desc, model_desc, views, view_el, ring_of_vertex, config):
+    out = [
+        Correspondences(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)) for _ in views
+    ]
+    view_el_arr = np.asarray(view_el, np.float64)
+    for ring in np.unique(ring_of_vertex):
+        rows = np.flatnonzero(ring_of_vertex == ring)
+        in_ring = np.flatnonzero(view_el_arr == ring)
+        if len(rows) == 0 or len(in_ring) == 0:
+            continue
+        cols = np.concatenate([np.arange(views[v][1].start, views[v][1].stop) for v in in_ring])
+        owner = np.concatenate([np.full(views[v][1].stop - views[v][1].start, v) for v in in_ring])
+        d2 = descriptor_sq_distances(scene_desc[rows], model_desc[cols])
+        if config.knn_across_views:
+            c = reference_knndr(d2, config.knndr_k, config.knndr_ratio)
+            for v in in_ring:
+                sel = np.flatnonzero(owner[c.model] == v)
+                out[v] = Correspondences(
+                    rows[c.scene[sel]], cols[c.model[sel]] - views[v][1].start, c.distance[sel]
+                )
+        else:
+            start = 0
+            for v in in_ring:
+                n = views[v][1].stop - views[v][1].start
+                c = reference_knndr(
+                    d2[:, start : start + n],
+                    config.knndr_k,
+                    config.knndr_ratio,
+                    config.max_correspondences,
+                )
+                out[v] = Correspondences(rows[c.scene], c.model, c.distance)
+                start += n
+    return out
+
+
 # ------------------------------------------------------------------------------ helpers
 
 
@@ -226,6 +264,29 @@ def test_knndr_rejects_ratios_above_one_and_k_below_one():
         knndr_from_distances(d2, 10, 1.5)
     with pytest.raises(InputError):
         knndr_from_distances(d2, 0, 0.9)
+
+
+@pytest.mark.parametrize("across", [False, True])
+def test_match_views_matches_the_numpy_reference(across):
+    """Per-view and across-view kNNDR over elevation rings, with NaN scene descriptors."""
+    rng = np.random.default_rng(11)
+    scene = rng.random((150, 352), np.float32)
+    scene[rng.random(150) < 0.1] = np.nan
+    sizes = rng.integers(20, 60, 12)
+    model = rng.random((int(sizes.sum()), 352), np.float32)
+    bounds = np.concatenate([[0], np.cumsum(sizes)])
+    views = [(slice(0, 1), slice(int(a), int(b))) for a, b in zip(bounds[:-1], bounds[1:])]
+    config = RecognitionConfig(knn_across_views=across, max_correspondences=500)
+    for view_el, ring_of_vertex in (
+        ([10.0] * 12, np.full(150, 10.0)),  # one ring: every row and view, consecutive
+        ([10.0] * 6 + [30.0] * 6, rng.choice([10.0, 30.0], 150)),  # two rings, rows interleaved
+        ([10.0, 30.0] * 6, np.r_[np.full(70, 10.0), np.full(80, 30.0)]),  # views interleaved
+    ):
+        got = _match_views(scene, model, views, view_el, ring_of_vertex, config)
+        want = reference_match_views(scene, model, views, view_el, ring_of_vertex, config)
+        assert len(got) == len(want) == len(views)
+        assert all(_same_corr(g, w) for g, w in zip(got, want, strict=True))
+        assert sum(len(w) for w in want) > 100
 
 
 # ------------------------------------------------------------------------------ upright Hough
