@@ -130,34 +130,31 @@ def hough_votes(
     cos_bin: np.ndarray,
     sin_bin: np.ndarray,
     cell_m: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
+) -> tuple[np.ndarray, np.ndarray, int, int]:  # pragma: no cover - compiled
     """Votes of correspondences in an upright-pose (heading bin, x cell, y cell) accumulator.
 
-    Correspondence c = ``rows[r]`` votes in every heading bin b with ``window[r, b]``, for the cell of
-    the target origin s_xy - R(b) m_xy.
+    Correspondence c = ``rows[r]`` votes in every heading bin b with ``window[r, b]``, for the cell
+    (x, y) of the target origin s_xy - R(b) m_xy, cells counted from the smallest x and y voted for.
 
     Returns:
-        per vote: correspondence, bin, x cell, y cell (cells shifted so that the smallest is 0); votes
-        are ordered by bin, those of bin b are ``bin_start[b]:bin_start[b + 1]``.
+        per vote the correspondence and the cell's key (b nx + x) ny + y, which orders cells by
+        (b, x, y); and nx, ny.
 
     """
-    n_rows, n_bins = window.shape
-    bin_start = np.zeros(n_bins + 1, np.int64)
-    for b in range(n_bins):
-        bin_start[b + 1] = bin_start[b]
-        for r in range(n_rows):
-            bin_start[b + 1] += window[r, b] != 0
-    n_votes = bin_start[n_bins]
+    n_votes = 0
+    for r in range(window.shape[0]):
+        for b in range(window.shape[1]):
+            n_votes += window[r, b] != 0
     ci = np.empty(n_votes, np.int64)
     bi = np.empty(n_votes, np.int64)
     gx = np.empty(n_votes, np.int64)
     gy = np.empty(n_votes, np.int64)
     v = 0
-    for b in range(n_bins):
-        for r in range(n_rows):
+    for r in range(window.shape[0]):
+        c = rows[r]
+        for b in range(window.shape[1]):
             if window[r, b] == 0:
                 continue
-            c = rows[r]
             tx = s[c, 0] - (cos_bin[b] * m[c, 0] - sin_bin[b] * m[c, 1])
             ty = s[c, 1] - (sin_bin[b] * m[c, 0] + cos_bin[b] * m[c, 1])
             ci[v] = c
@@ -165,10 +162,12 @@ def hough_votes(
             gx[v] = np.int64(np.floor(tx / cell_m))
             gy[v] = np.int64(np.floor(ty / cell_m))
             v += 1
-    if n_votes:
-        gx -= gx.min()
-        gy -= gy.min()
-    return ci, bi, gx, gy, bin_start
+    if n_votes == 0:
+        return ci, bi, 0, 0
+    gx -= gx.min()
+    gy -= gy.min()
+    nx, ny = gx.max() + 1, gy.max() + 1
+    return ci, (bi * nx + gx) * ny + gy, nx, ny
 
 
 @numba.njit(cache=True)
@@ -192,68 +191,69 @@ def count_runs(
 
 
 @numba.njit(cache=True)
-def _bin_distance(a: int, b: int, n_bins: int) -> int:  # pragma: no cover - compiled
-    """Distance between two heading bins on the circle of ``n_bins`` bins."""
-    d = abs(a - b)
-    return min(d, n_bins - d)
-
-
-@numba.njit(cache=True)
 def claim_hough_groups(
+    cell: np.ndarray,
     ci: np.ndarray,
-    gx: np.ndarray,
-    gy: np.ndarray,
-    bin_start: np.ndarray,
-    peak_b: np.ndarray,
-    peak_x: np.ndarray,
-    peak_y: np.ndarray,
+    peaks: np.ndarray,
+    n_bins: int,
+    nx: int,
+    ny: int,
     n_corr: int,
     min_size: int,
     max_groups: int,
 ) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    """Groups of the accumulator's peaks (votes as from ``hough_votes``), strongest peak first.
+    """Groups of the accumulator's peaks, strongest peak first.
 
-    A peak (bin, x, y) whose 3 x 3 x 3 neighbourhood (bins on the circle) touches an earlier peak's is
-    skipped; otherwise its group is every correspondence voting in that neighbourhood (ascending, each
-    once). Stops after ``max_groups`` groups (< 0: no limit).
+    Votes come sorted by ``cell`` (keys as from ``hough_votes``), with their correspondences ``ci``.
+    A peak (bin, x, y) whose 3 x 3 x 3 neighbourhood (bins on the circle) touches an earlier peak's
+    is skipped; otherwise its group is every correspondence voting in that neighbourhood (ascending,
+    each once). Stops after ``max_groups`` groups (< 0: no limit).
 
     Returns:
         the groups' members one after the other, and each group's size.
 
     """
-    n_bins = bin_start.shape[0] - 1
     members = np.empty(0, np.int64)
     sizes = np.empty(0, np.int64)
     in_group = np.zeros(n_corr, np.bool_)
     found = np.empty(ci.shape[0], np.int64)
-    claimed = np.empty(peak_b.shape[0], np.int64)
+    claimed = np.empty((peaks.shape[0], 3), np.int64)
     n_claimed = 0
-    for p in range(peak_b.shape[0]):
+    for p in range(peaks.shape[0]):
         if max_groups >= 0 and sizes.shape[0] >= max_groups:
             break
-        b, x, y = peak_b[p], peak_x[p], peak_y[p]
+        b, rest = divmod(peaks[p], nx * ny)
+        x, y = divmod(rest, ny)
         clash = False
-        for q in claimed[:n_claimed]:
+        for q in range(n_claimed):
+            d = abs(b - claimed[q, 0])
             if (
-                _bin_distance(b, peak_b[q], n_bins) <= 1
-                and abs(x - peak_x[q]) <= 1
-                and abs(y - peak_y[q]) <= 1
+                min(d, n_bins - d) <= 1
+                and abs(x - claimed[q, 1]) <= 1
+                and abs(y - claimed[q, 2]) <= 1
             ):
                 clash = True
                 break
         if clash:
             continue
-        claimed[n_claimed] = p
+        claimed[n_claimed, 0] = b
+        claimed[n_claimed, 1] = x
+        claimed[n_claimed, 2] = y
         n_claimed += 1
+        # The neighbourhood's votes: per bin and x, one run of keys (y - 1 .. y + 1) in ``cell``.
+        # With fewer than 3 bins a bin comes twice, which adds nobody twice.
         n_found = 0
-        for bb in range(n_bins):
-            if _bin_distance(bb, b, n_bins) > 1:
-                continue
-            for v in range(bin_start[bb], bin_start[bb + 1]):
-                if abs(gx[v] - x) <= 1 and abs(gy[v] - y) <= 1 and not in_group[ci[v]]:
-                    in_group[ci[v]] = True
-                    found[n_found] = ci[v]
-                    n_found += 1
+        for db in range(-1, 2):
+            bb = (b + db) % n_bins
+            for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                base = (bb * nx + xx) * ny
+                lo = np.searchsorted(cell, base + max(y - 1, 0))
+                hi = np.searchsorted(cell, base + min(y + 1, ny - 1), side="right")
+                for v in range(lo, hi):
+                    if not in_group[ci[v]]:
+                        in_group[ci[v]] = True
+                        found[n_found] = ci[v]
+                        n_found += 1
         group = np.sort(found[:n_found])
         in_group[group] = False
         if group.shape[0] >= min_size:

@@ -376,7 +376,7 @@ def group_upright_hough(
         if (window < 0).any():  # too close to call arithmetically: the exact rule decides
             r, b = np.nonzero(window < 0)
             window[r, b] = np.abs(np.angle(np.exp(1j * (centres[b] - yaw[r])))) <= limit
-    ci, bi, gx, gy, bin_start = _kernels.hough_votes(
+    ci, cell, nx, ny = _kernels.hough_votes(
         np.ascontiguousarray(s),
         np.ascontiguousarray(m),
         ok,
@@ -388,20 +388,18 @@ def group_upright_hough(
     if len(ci) == 0:
         return []
     # A correspondence votes at most once per bin, so a cell's votes are distinct correspondences.
-    # The key orders cells by (bin, x, y); peaks are taken most votes first, ties in key order.
-    nx, ny = int(gx.max()) + 1, int(gy.max()) + 1
-    cells, counts = _kernels.count_runs(np.sort((bi * nx + gx) * ny + gy), min_size)
-    peaks = cells[np.argsort(-counts, kind="stable")]
-    peak_b, rest = np.divmod(peaks, nx * ny)
-    peak_x, peak_y = np.divmod(rest, ny)
+    # Peaks are taken most votes first, ties in (bin, x, y) order.
+    by_cell = np.argsort(cell)
+    cell, ci = cell[by_cell], ci[by_cell]
+    peaks, counts = _kernels.count_runs(cell, min_size)
+    peaks = peaks[np.argsort(-counts, kind="stable")]
     members, sizes = _kernels.claim_hough_groups(
+        cell,
         ci,
-        gx,
-        gy,
-        bin_start,
-        peak_b,
-        peak_x,
-        peak_y,
+        peaks,
+        n_bins,
+        nx,
+        ny,
         len(corr),
         min_size,
         -1 if max_groups is None else max_groups,
