@@ -370,6 +370,7 @@ def recorded_scenes(path: Path, gap: int, uav: str = "uav1") -> list[Any]:
     detections: dict[int, dict] = {}
     stages: dict[int, dict[str, float]] = {}
     clouds: dict[int, int] = {}
+    camera_est: dict[int, list] = {}
     with open(path, "rb") as stream:
         for _, channel, message in make_reader(stream).iter_messages(log_time_order=False):
             topic = channel.topic
@@ -382,6 +383,11 @@ def recorded_scenes(path: Path, gap: int, uav: str = "uav1") -> list[Any]:
             elif topic in (keys.sfm_cloud(uav), keys.lidar(uav)):
                 data = codec.unpack(message.data)
                 clouds[data["stamp_ns"]] = len(cloud_points(data))
+                if data["source"] == "lidar":  # the LIDAR cloud is placed with the true pose
+                    camera_est[data["stamp_ns"]] = None
+            elif topic == keys.camera_pose(uav):
+                data = codec.unpack(message.data)
+                camera_est.setdefault(data["stamp_ns"], data["T_world_cam"].tolist())
             elif topic.endswith("/timing") and ("/sfm/" in topic or "/atr_matcher/" in topic):
                 data = codec.unpack(message.data)
                 prefix = "sfm_" if "/sfm/" in topic else ""
@@ -418,6 +424,8 @@ def recorded_scenes(path: Path, gap: int, uav: str = "uav1") -> list[Any]:
                 st,
                 clouds.get(stamp, 0),
                 None if d is not None else "no answer",
+                T_world_cam_true=t["T_world_cam"].tolist(),
+                T_world_cam_est=camera_est.get(stamp) or t["T_world_cam"].tolist(),
             )
         )
     return records
@@ -614,6 +622,7 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
                         "scenes_with_target": s.scenes_with_target,
                         "errors": s.errors,
                         "t_errors_m": list(s.t_errors_m),
+                        "nav_error_median_m": s.nav_error_median_m,
                         "stages_ms": s.stages_ms,
                         "cloud_points_median": float(np.median([r.cloud_points for r in records]))
                         if records

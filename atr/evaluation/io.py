@@ -18,7 +18,7 @@ from typing import Any
 from atr.errors import InputError
 from atr.evaluation.runner import Arm, Flight, SceneRecord
 
-RESULT_FORMAT = 1
+RESULT_FORMAT = 2
 
 
 def code_version(package_root: Path | None = None) -> str:

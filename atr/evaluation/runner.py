@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -149,6 +149,10 @@ class SceneRecord:
         stages_ms: per-stage times, milliseconds.
         cloud_points: points in the scene cloud (0 for 2D).
         error: the typed error a stage raised (the services would report it instead of answering).
+        T_world_cam_true: (4x4 nested lists) the frame's true camera pose.
+        T_world_cam_est: the camera pose the pipeline placed its cloud with (SfM: IMU-integrated; the
+            LIDAR and 2D baselines use the true pose). Scoring carries the detections from this frame
+            into the true one (``sensor_relative``).
 
     """
 
@@ -160,6 +164,30 @@ class SceneRecord:
     stages_ms: dict[str, float] = field(default_factory=dict)
     cloud_points: int = 0
     error: str | None = None
+    T_world_cam_true: list[list[float]] | None = None
+    T_world_cam_est: list[list[float]] | None = None
+
+    def sensor_relative(self, position_m: Sequence[float]) -> np.ndarray:
+        """A detected world position carried into the true world frame through the camera: the target's
+        position relative to the sensor, as estimated, placed where the true camera is. The pipeline's
+        navigation error (inertial drift over the flight) then does not count as ATR error; the paper's
+        setup (two frames and the IMU's relative motion) has no absolute navigation to bound it.
+        """
+        p = np.asarray(position_m, np.float64)
+        if self.T_world_cam_true is None or self.T_world_cam_est is None:
+            return p
+        T_true = np.asarray(self.T_world_cam_true, np.float64)
+        T_est = np.asarray(self.T_world_cam_est, np.float64)
+        p_cam = T_est[:3, :3].T @ (p - T_est[:3, 3])
+        return T_true[:3, :3] @ p_cam + T_true[:3, 3]
+
+    @property
+    def nav_error_m(self) -> float:
+        """Distance between the estimated and the true camera position, metres (NaN when unknown)."""
+        if self.T_world_cam_true is None or self.T_world_cam_est is None:
+            return float("nan")
+        d = np.asarray(self.T_world_cam_true)[:3, 3] - np.asarray(self.T_world_cam_est)[:3, 3]
+        return float(np.linalg.norm(d))
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data."""
@@ -172,6 +200,8 @@ class SceneRecord:
             "stages_ms": self.stages_ms,
             "cloud_points": self.cloud_points,
             "error": self.error,
+            "T_world_cam_true": self.T_world_cam_true,
+            "T_world_cam_est": self.T_world_cam_est,
         }
 
     @classmethod
@@ -182,6 +212,8 @@ class SceneRecord:
             stages_ms=dict(d.get("stages_ms", {})),
             cloud_points=int(d.get("cloud_points", 0)),
             error=d.get("error"),
+            T_world_cam_true=d.get("T_world_cam_true"),
+            T_world_cam_est=d.get("T_world_cam_est"),
         )
 
 
@@ -326,22 +358,25 @@ def run_flight(
             clouds: dict[
                 str, tuple[Any, float]
             ] = {}  # one reconstruction per matcher, shared by descriptors
+            T_true = np.asarray(frame.T_world_cam, np.float64).tolist()
             for arm in arms:
-                records[arm].append(
-                    _scene(
-                        arm,
-                        configs[arm],
-                        frame,
-                        truth,
-                        images,
-                        poses,
-                        gap,
-                        templates_3d,
-                        templates_2d,
-                        b2d,
-                        clouds,
-                    )
+                record = _scene(
+                    arm,
+                    configs[arm],
+                    frame,
+                    truth,
+                    images,
+                    poses,
+                    gap,
+                    templates_3d,
+                    templates_2d,
+                    b2d,
+                    clouds,
                 )
+                # SfM places its cloud with the integrated pose; LIDAR and 2D use the true one
+                uses_imu = not arm.is_2d and arm.pipeline != "lidar"
+                T_est = np.asarray(poses[k], np.float64).tolist() if uses_imu else T_true
+                records[arm].append(replace(record, T_world_cam_true=T_true, T_world_cam_est=T_est))
         for old in [f for f in images if f <= k - gap]:
             del images[old], poses[old]
     return records

@@ -2,7 +2,9 @@
 
 The rules are the demo's (cli/flight_report.py): a scene has the target when the target's visible fraction
 reaches `SimConfig.present_min_visible_fraction`; only detections labelled with the target's name are
-hypotheses, and the best-scoring one is judged.
+hypotheses, and the best-scoring one is judged. Positions are compared relative to the sensor
+(`SceneRecord.sensor_relative`): the navigation error of the pipeline's camera pose is reported apart
+(`RunSummary.nav_error_median_m`), not counted as translation error.
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ def score_record(
         (d for d in record.detections if d["target"] == target), key=lambda d: -d["score"]
     )
     return score_scene(
-        true_positions, [np.asarray(d["position_m"], np.float64) for d in hypotheses]
+        true_positions, [record.sensor_relative(d["position_m"]) for d in hypotheses]
     )
 
 
@@ -61,6 +63,8 @@ class RunSummary:
         scenes: scenes scored.
         scenes_with_target: scenes that have the target.
         errors: scenes where a stage raised a typed error (no answer).
+        nav_error_median_m: median distance between the pipeline's and the true camera position
+            (0 for the baselines, which use the true pose; NaN when unknown).
 
     """
 
@@ -72,6 +76,7 @@ class RunSummary:
     scenes: int
     scenes_with_target: int
     errors: int
+    nav_error_median_m: float = float("nan")
 
 
 def summarise(
@@ -94,4 +99,7 @@ def summarise(
         scenes=len(records),
         scenes_with_target=sum(s.has_target for s in scores),
         errors=sum(r.error is not None for r in records),
+        nav_error_median_m=float(np.median([r.nav_error_m for r in records]))
+        if records
+        else float("nan"),
     )
