@@ -17,8 +17,9 @@ from atr.errors import SchemaError
 from bus import schemas
 
 NDARRAY_EXT = 1
-MAX_MESSAGE_BYTES = 32 * 1024 * 1024  # larger payloads are refused: a 1280x960 RGB frame is 3.7 MB,
-# a 262k-point LIDAR scan 3.1 MB
+MAX_MESSAGE_BYTES = 64 * 1024 * 1024  # larger payloads are refused: a 1280x960 RGB frame is 3.7 MB,
+# a 262k-point LIDAR scan 3.1 MB, the largest template (T-72, USC or 3DSC: 24 views x ~220 keypoints x
+# 1960-1980 floats) 42 MB
 
 
 def _pack_array(array: np.ndarray) -> msgpack.ExtType:
