@@ -323,7 +323,7 @@ def _work_via_services(
                 flight.scenario,
                 flight.run,
                 flight.seed,
-                index == 0,
+                index == 0 or plan_.config.sim.nav_fix_every_frame,
                 plan_.config.sim.present_min_visible_fraction,
             )
 

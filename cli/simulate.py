@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
                 args.scenario,
                 args.run,
                 args.seed,
-                index == 0,
+                index == 0 or config.sim.nav_fix_every_frame,
                 config.sim.present_min_visible_fraction,
             )
 

@@ -92,6 +92,11 @@ class SimConfig:
     target_samples: int = 1200  # surface samples used for visible_fraction
     # a frame 'has the target' at or above this visible fraction
     present_min_visible_fraction: float = 0.1
+    # Navigation: False = the UAV's INS is aligned once before take-off (the first ImuBatch's `init`) and the
+    # pose integrator dead-reckons from there; True = an aided navigation fix (e.g. GNSS/INS) comes with every
+    # frame, so each pair's relative motion is integrated from a correct state over one frame interval only
+    # (the paper's premise: the IMU measures the camera motion between the two frames).
+    nav_fix_every_frame: bool = False
 
     def __post_init__(self) -> None:
         for name in ("width_px", "height_px", "lidar_grid", "lidar_sub_rays", "target_samples"):

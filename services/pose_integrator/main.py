@@ -3,7 +3,9 @@
 The paper's §II-B-1, eqs. (1)-(4): the camera's motion between two frames comes from the IMU, not the images.
 Each ImuBatch ends at a camera frame; the first batch of a flight carries the initial navigation state
 (`init`). For frame k it publishes the CameraPose, and for the pair (k - gap, k) the RelativePose
-(gap = sfm.pair_gap_frames), both stamped with the frame's stamp_ns.
+(gap = sfm.pair_gap_frames), both stamped with the frame's stamp_ns. A later batch's `init` is an aided
+navigation fix at its frame (`sim.nav_fix_every_frame`): that frame's pose is still the integrated one (the
+pair ending there used it), and the next pair starts from the fix.
 
 Example:
     atr service pose_integrator --uav uav1 --set imu.integration=paper
@@ -48,18 +50,19 @@ def main(argv: list[str] | None = None) -> int:
             with node.handling(message):
                 batch = message.data
                 t0 = time.perf_counter()
-                if "init" in batch:
-                    integrator = PoseIntegrator(
-                        config.imu, initial_state(batch["stamp_ns"], batch["init"])
-                    )
+                frame, stamp = int(batch["frame_seq"]), int(batch["stamp_ns"])
+                fix = batch.get("init")
+                if fix is not None and (integrator is None or frame - gap not in poses):
+                    # a flight starts: the INS alignment before take-off
+                    integrator = PoseIntegrator(config.imu, initial_state(stamp, fix))
                     poses.clear()
+                    fix = None
                 if integrator is None:
                     raise InputError(
                         f"IMU batch for frame {batch['frame_seq']} arrived before any initialisation (`init`)"
                     )
                 if len(batch["t_ns"]):
                     integrator.add_imu(batch["t_ns"], batch["gyro_radps"], batch["accel_mps2"])
-                frame, stamp = int(batch["frame_seq"]), int(batch["stamp_ns"])
                 T_world_cam = integrator.camera_pose(stamp)
                 poses[frame] = (stamp, T_world_cam)
                 node.publish(
@@ -85,6 +88,10 @@ def main(argv: list[str] | None = None) -> int:
                             "T_world_cam_t1": T_world_cam,
                         },
                     )
+                if fix is not None:
+                    # an aided navigation fix at this frame: the next pair starts from it
+                    integrator = PoseIntegrator(config.imu, initial_state(stamp, fix))
+                    poses[frame] = (stamp, integrator.camera_pose(stamp))
                 for old in [f for f in poses if f <= frame - gap]:
                     del poses[old]
                 node.timing(message.seq, stamp, {"integrate": 1e3 * (time.perf_counter() - t0)})

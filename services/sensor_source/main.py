@@ -41,7 +41,7 @@ def frame_messages(
     scenario: int,
     run: int,
     seed: int,
-    first: bool,
+    nav_fix: bool,
     present_min_visible_fraction: float,
 ) -> Iterator[tuple[str, dict[str, Any]]]:
     """The (key, message) pairs of one simulated frame, in publication order (image last).
@@ -57,7 +57,7 @@ def frame_messages(
         "gyro_radps": frame.gyro_radps,
         "accel_mps2": frame.accel_mps2,
     }
-    if first:
+    if nav_fix:  # the flight's first frame, or every frame with an aided navigation fix
         imu["init"] = {"T_world_imu": frame.T_world_imu, "v_world_mps": frame.v_world_imu_mps}
     yield keys.imu(uav), imu
     if frame.lidar_points_m is not None:
@@ -173,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
                 args.scenario,
                 args.run,
                 args.seed,
-                index == 0,
+                index == 0 or config.sim.nav_fix_every_frame,
                 config.sim.present_min_visible_fraction,
             ):
                 node.publish(key, message)

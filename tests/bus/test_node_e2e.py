@@ -128,6 +128,51 @@ def test_bad_inputs_are_reported_and_the_next_good_one_is_processed(hub):
         stop_process(service)
 
 
+def test_pose_integrator_applies_a_later_init_as_a_navigation_fix(hub):
+    """sim.nav_fix_every_frame: a batch's `init` after the first is a fix at its frame; that frame's pose
+    is still integrated (the pair ending there used it) and the next pair starts from the fix."""
+    service = _service("pose_integrator", hub)
+    session = open_session(peer_config(hub))
+    try:
+        _wait_running(session, "pose_integrator")
+        poses, pairs = {}, {}
+        session.declare_subscriber(
+            "atr/uav1/pose/camera",
+            lambda s: poses.update({(m := codec.unpack(s.payload.to_bytes()))["frame_seq"]: m}),
+        )
+        session.declare_subscriber(
+            "atr/uav1/pose/relative",
+            lambda s: pairs.update({(m := codec.unpack(s.payload.to_bytes()))["frame_seq_t"]: m}),
+        )
+        time.sleep(0.5)
+        jumped = np.eye(4)
+        jumped[:3, 3] = [5.0, 0.0, 0.0]
+        for seq in range(3):
+            batch = _good_imu(seq)
+            batch["t_ns"] = batch["t_ns"] + seq * 100_000_000
+            batch["stamp_ns"] = int(batch["t_ns"][-1])
+            if seq == 1:  # a fix 5 m away from where the IMU says the vehicle is
+                batch["init"] = {"T_world_imu": jumped, "v_world_mps": np.zeros(3)}
+            elif seq == 2:
+                del batch["init"]
+            session.put(
+                "atr/uav1/imu", codec.pack(batch), congestion_control=zenoh.CongestionControl.BLOCK
+            )
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and not (len(poses) == 3 and 1 in pairs):
+            time.sleep(0.1)
+        origin = poses[0]["T_world_cam"][:3, 3]
+        # frame 1: still where the IMU put it (stationary), not at the fix
+        assert np.linalg.norm(poses[1]["T_world_cam"][:3, 3] - origin) < 1e-6
+        assert np.allclose(pairs[0]["T_world_cam_t1"], poses[1]["T_world_cam"])
+        # the pair (1, 2) starts from the fix and integrates from there
+        assert np.allclose(pairs[1]["T_world_cam_t"][:3, 3] - origin, [5.0, 0.0, 0.0], atol=1e-6)
+        assert np.allclose(poses[2]["T_world_cam"][:3, 3] - origin, [5.0, 0.0, 0.0], atol=1e-6)
+    finally:
+        session.close()
+        stop_process(service)
+
+
 def test_killed_service_is_restarted_by_atr_up(tmp_path):
     port = free_port()
     layout = tmp_path / "mini.yml"

@@ -73,3 +73,20 @@ def test_every_is_refused_with_the_service_graph(tmp_path):
     )
     with pytest.raises(ConfigError, match="--every 2"):
         plan(args)
+
+
+def test_a_navigation_fix_every_frame_bounds_the_drift(tmp_path):
+    """sim.nav_fix_every_frame: each pair is integrated from a correct state over one frame interval, so the
+    camera pose the cloud is placed with stays near the truth while dead reckoning from take-off drifts."""
+    from cli.evaluate import execute, plan  # noqa: PLC0415
+
+    def last_scene(extra: list[str], folder: str):
+        args = [*ARGS, "--every", "6", "--results", str(tmp_path / folder), *extra]
+        out = execute(plan(build_parser().parse_args(args)))
+        return next(iter(out.values()))[-1]
+
+    inertial = last_scene([], "inertial")
+    aided = last_scene(["--set", "sim.nav_fix_every_frame=true"], "aided")
+    assert inertial.frame == aided.frame == 6
+    assert aided.nav_error_m < 0.5 * inertial.nav_error_m
+    assert aided.truth == inertial.truth
