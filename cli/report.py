@@ -522,7 +522,7 @@ def build_report(
         "the template holds; 2D: all 12 templates' keypoints and descriptors). Time per scene: median over each run's scenes, pooled "
         "weighted by scenes; SfM includes the two-view reconstruction, LIDAR is the matcher alone, 2D is "
         "detection, description and matching against the 12 templates. The paper's times are on an i7 at "
-        "2.6 GHz; ours on a shared 2-core VM under load.",
+        "2.6 GHz; ours on a 2-core VM (its load during the run: see the discussion).",
         "",
         figs.stacked("fig8_stages", "Processing time per stage (Fig. 8)", stages),
     ]
