@@ -4,42 +4,18 @@ skipped)."""
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import pytest
 
 from atr.errors import ConfigError
 from cli.main import build_parser
 
-# A 640x480 camera (half the focal length), one template, loosened acceptance so that there are detections
-# to compare (as test_services_identity.py).
-ARGS = [
-    "eval",
-    "--scenario",
-    "1",
-    "--run",
-    "4",
-    "--frames",
-    "7",
-    "--pipeline",
-    "gftt-sfm",
-    "--descriptor",
-    "fpfh",
-    "--set",
-    "sim.width_px=640",
-    "--set",
-    "sim.height_px=480",
-    "--set",
-    "sim.focal_px=1000",
-    "--set",
-    "pipeline.targets=[t72]",
-    "--set",
-    "recognition.min_overlap=0.05",
-    "--set",
-    "recognition.min_overlap_vertices=3",
-    "--set",
-    "recognition.max_clutter=1.0",
-    "--set",
-    "recognition.min_group_size=3",
-]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _small_flight import SMALL_FLIGHT  # noqa: E402
+
+ARGS = [*SMALL_FLIGHT, "--frames", "7"]
 
 
 def scenes(results, every: int):

@@ -6,6 +6,9 @@ Everything on the service side is real: processes on a Zenoh bus on loopback, lo
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import pytest
 
 from atr.sim.config import SimConfig
@@ -13,38 +16,10 @@ from cli.main import build_parser
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
-# Small and quick, the same physics: a 640x480 camera with half the focal length, one target template.
-# Scenario 1 run 4 (45 deg) with FPFH. The acceptance thresholds are loosened so that these frames give
-# several detections (most of them false): the comparison must cover non-empty detections, not only empty ones.
-ARGS = [
-    "eval",
-    "--scenario",
-    "1",
-    "--run",
-    "4",
-    "--frames",
-    "3",
-    "--pipeline",
-    "gftt-sfm",
-    "--descriptor",
-    "fpfh",
-    "--set",
-    "sim.width_px=640",
-    "--set",
-    "sim.height_px=480",
-    "--set",
-    "sim.focal_px=1000",
-    "--set",
-    "pipeline.targets=[t72]",
-    "--set",
-    "recognition.min_overlap=0.05",
-    "--set",
-    "recognition.min_overlap_vertices=3",
-    "--set",
-    "recognition.max_clutter=1.0",
-    "--set",
-    "recognition.min_group_size=3",
-]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _small_flight import SMALL_FLIGHT  # noqa: E402
+
+ARGS = [*SMALL_FLIGHT, "--frames", "3"]
 
 
 def evaluate(results, via_services: bool):
