@@ -516,8 +516,9 @@ def verify_with_icp(
 ) -> Verification:
     """Apply a hypothesis to the model, refine it with ICP against the scene, measure the fit (§II-B-2).
 
-    Two measures: the model side (how many model vertices have a scene vertex within ``overlap_m``, the
-    paper's overlapping vertices) and the scene side (how much of what the scene holds inside the model's
+    Two measures: the model side (how many model vertices have a scene vertex within ``overlap_m``, or
+    within the scene's own spacing in the model's box when a sparse scene samples the target more coarsely:
+    the paper's overlapping vertices) and the scene side (how much of what the scene holds inside the model's
     bounding box is *not* explained by the model: a box-shaped model laid on a building fits the wall but
     leaves the rest of the building unexplained). The bottom ``ground_slab_m`` of the box is ignored on the
     scene side, because the ground the target stands on is never part of the model.
