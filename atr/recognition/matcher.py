@@ -349,7 +349,6 @@ def recognize(
                 pts_v = model_all[views[vi][0]]
                 view_cache[vi] = (pts_v, cKDTree(pts_v))
             model_pts, model_tree = view_cache[vi]
-
             v = verify_with_icp(
                 model_pts,
                 surface,
