@@ -2,6 +2,18 @@
 the focal length and one target template. The acceptance thresholds are loosened so that these frames give several
 detections (most of them false): comparisons must cover non-empty detections, not only empty ones."""
 
+# A 640x480 camera with half the focal length and one target template: small and quick, the same physics.
+SMALL_CAMERA = [
+    "--set",
+    "sim.width_px=640",
+    "--set",
+    "sim.height_px=480",
+    "--set",
+    "sim.focal_px=1000",
+    "--set",
+    "pipeline.targets=[t72]",
+]
+
 SMALL_FLIGHT = [
     "eval",
     "--scenario",
@@ -12,14 +24,7 @@ SMALL_FLIGHT = [
     "gftt-sfm",
     "--descriptor",
     "fpfh",
-    "--set",
-    "sim.width_px=640",
-    "--set",
-    "sim.height_px=480",
-    "--set",
-    "sim.focal_px=1000",
-    "--set",
-    "pipeline.targets=[t72]",
+    *SMALL_CAMERA,
     "--set",
     "recognition.min_overlap=0.05",
     "--set",

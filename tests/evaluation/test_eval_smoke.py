@@ -10,6 +10,9 @@ from pathlib import Path
 
 import pytest
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _small_flight import SMALL_CAMERA as SMALL  # noqa: E402
+
 REPO = Path(__file__).resolve().parents[2]
 CONTRACT = {
     "scenario",
@@ -25,16 +28,6 @@ CONTRACT = {
     "time_per_scene_ms",
     "scenes",
 }
-SMALL = [
-    "--set",
-    "sim.width_px=640",
-    "--set",
-    "sim.height_px=480",
-    "--set",
-    "sim.focal_px=1000",
-    "--set",
-    "pipeline.targets=[t72]",
-]
 
 
 def atr(*args: str) -> subprocess.CompletedProcess[str]:
