@@ -114,26 +114,39 @@ def fly_layout(
 
 
 class FlightWatch:
-    """Pairs each Detections message with the truth of its frame as they cross the bus (simulated flights)."""
+    """Pairs each Detections message with its frame's truth and estimated camera pose (simulated flights).
+
+    The callback gets (Truth, Detections, CameraPose or None) as the Detections message crosses the bus.
+    """
 
     def __init__(
-        self, session: object, uav: str, on_scene: Callable[[dict | None, dict], None]
+        self,
+        session: object,
+        uav: str,
+        on_scene: Callable[[dict | None, dict, dict | None], None],
     ) -> None:
         from bus import codec, keys  # noqa: PLC0415
 
         self._truth: dict[int, dict] = {}
+        self._camera_pose: dict[int, dict] = {}
         self._on_scene = on_scene
 
         def on_truth(sample: object) -> None:
             message = codec.unpack(sample.payload.to_bytes())
             self._truth[message["stamp_ns"]] = message
 
+        def on_camera_pose(sample: object) -> None:
+            message = codec.unpack(sample.payload.to_bytes())
+            self._camera_pose.setdefault(message["stamp_ns"], message)
+
         def on_detections(sample: object) -> None:
             message = codec.unpack(sample.payload.to_bytes())
-            self._on_scene(self._truth.get(message["stamp_ns"]), message)
+            stamp = message["stamp_ns"]
+            self._on_scene(self._truth.get(stamp), message, self._camera_pose.get(stamp))
 
         self._subs = [
             session.declare_subscriber(keys.truth(uav), on_truth),
+            session.declare_subscriber(keys.camera_pose(uav), on_camera_pose),
             session.declare_subscriber(keys.detections(uav), on_detections),
         ]
 
@@ -144,21 +157,28 @@ class FlightWatch:
         self._subs = []
 
 
-def flight_scenes(path: Path, uav: str = "uav1") -> list[tuple[dict | None, dict]]:
-    """(truth, detections) per Detections message of a recording, in order."""
+def flight_scenes(path: Path, uav: str = "uav1") -> list[tuple[dict | None, dict, dict | None]]:
+    """(truth, detections, camera pose) per Detections message of a recording, in order.
+
+    The camera pose is the frame's first CameraPose message (None when the recording has none).
+    """
     from mcap.reader import make_reader  # noqa: PLC0415
 
     from bus import codec, keys  # noqa: PLC0415
 
     truth: dict[int, dict] = {}
-    scenes = []
+    camera_pose: dict[int, dict] = {}
+    detections = []
     with open(path, "rb") as stream:
         for _, channel, message in make_reader(stream).iter_messages(
-            topics=[keys.truth(uav), keys.detections(uav)], log_time_order=False
+            topics=[keys.truth(uav), keys.camera_pose(uav), keys.detections(uav)],
+            log_time_order=False,
         ):
             data = codec.unpack(message.data)
             if channel.topic == keys.truth(uav):
                 truth[data["stamp_ns"]] = data
+            elif channel.topic == keys.camera_pose(uav):
+                camera_pose.setdefault(data["stamp_ns"], data)
             else:
-                scenes.append((data, channel.topic))
-    return [(truth.get(d["stamp_ns"]), d) for d, _ in scenes]
+                detections.append(data)
+    return [(truth.get(d["stamp_ns"]), d, camera_pose.get(d["stamp_ns"])) for d in detections]

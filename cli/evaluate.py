@@ -359,18 +359,18 @@ def _work_via_services(
 
 
 def recorded_scenes(path: Path, gap: int, uav: str = "uav1") -> list[Any]:
-    """Read a recorded run's SceneRecords: truth and Detections by stamp_ns, Timing times."""
+    """Read a recorded run's SceneRecords: truth, Detections and CameraPose by stamp_ns, Timing times."""
     from mcap.reader import make_reader  # noqa: PLC0415
 
-    from atr.evaluation.runner import SceneRecord, detection_dict  # noqa: PLC0415
     from bus import codec, keys  # noqa: PLC0415
     from bus.clouds import cloud_points  # noqa: PLC0415
+    from cli.flight_report import scene_record  # noqa: PLC0415
 
     truth: dict[int, dict] = {}
     detections: dict[int, dict] = {}
     stages: dict[int, dict[str, float]] = {}
     clouds: dict[int, int] = {}
-    camera_est: dict[int, list] = {}
+    camera_pose: dict[int, dict] = {}
     with open(path, "rb") as stream:
         for _, channel, message in make_reader(stream).iter_messages(log_time_order=False):
             topic = channel.topic
@@ -383,11 +383,9 @@ def recorded_scenes(path: Path, gap: int, uav: str = "uav1") -> list[Any]:
             elif topic in (keys.sfm_cloud(uav), keys.lidar(uav)):
                 data = codec.unpack(message.data)
                 clouds[data["stamp_ns"]] = len(cloud_points(data))
-                if data["source"] == "lidar":  # the LIDAR cloud is placed with the true pose
-                    camera_est[data["stamp_ns"]] = None
             elif topic == keys.camera_pose(uav):
                 data = codec.unpack(message.data)
-                camera_est.setdefault(data["stamp_ns"], data["T_world_cam"].tolist())
+                camera_pose.setdefault(data["stamp_ns"], data)
             elif topic.endswith("/timing") and ("/sfm/" in topic or "/atr_matcher/" in topic):
                 data = codec.unpack(message.data)
                 prefix = "sfm_" if "/sfm/" in topic else ""
@@ -397,35 +395,17 @@ def recorded_scenes(path: Path, gap: int, uav: str = "uav1") -> list[Any]:
                         into[prefix + name] = float(ms)
     records = []
     for stamp in sorted(truth):
-        t = truth[stamp]
-        if t["frame_seq"] < gap:
+        if truth[stamp]["frame_seq"] < gap:
             continue
-        d = detections.get(stamp)
-        found = [
-            detection_dict(x["target"], x["T_world_target"], x["score"])
-            for x in (d or {}).get("detections", [])
-        ]
-        truth_list = [
-            {
-                "name": x["name"],
-                "position_m": [float(v) for v in x["T_world_target"][:3, 3]],
-                "visible_fraction": float(x["visible_fraction"]),
-            }
-            for x in t["targets"]
-        ]
         st = stages.get(stamp, {})
         records.append(
-            SceneRecord(
-                int(t["frame_seq"]),
-                stamp,
-                truth_list,
-                found,
-                sum(st.values()) if st else float("nan"),
-                st,
-                clouds.get(stamp, 0),
-                None if d is not None else "no answer",
-                T_world_cam_true=t["T_world_cam"].tolist(),
-                T_world_cam_est=camera_est.get(stamp) or t["T_world_cam"].tolist(),
+            scene_record(
+                truth[stamp],
+                detections.get(stamp),
+                camera_pose.get(stamp),
+                time_ms=sum(st.values()) if st else float("nan"),
+                stages_ms=st,
+                cloud_points=clouds.get(stamp, 0),
             )
         )
     return records

@@ -1,32 +1,81 @@
-"""Per-scene lines and the F1 of a simulated flight, for `atr demo` and `atr run` users (no bus logic)."""
+"""Per-scene lines and the F1 of a simulated flight, for `atr demo` and `atr run` users (no bus logic).
+
+A scene is judged exactly as `atr eval` judges it (`atr.evaluation.scoring.score_record`): relative to the
+sensor, so that the pose integrator's drift over a long flight is not counted as recognition error.
+"""
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from atr.evaluation.metrics import Counts, SceneScore, count, score_scene
+from atr.evaluation.metrics import Counts, SceneScore, count
+from atr.evaluation.runner import SceneRecord, detection_dict
+from atr.evaluation.scoring import score_record
 
 TARGET = "t72"
 
 
-def score(truth: dict | None, detections: dict, target: str = TARGET) -> SceneScore:
-    """Judge one scene from its Truth and Detections messages."""
-    # The truth lists only the targets present in the scene (sensor_source applies the visibility rule).
-    true_positions = [
-        np.asarray(t["T_world_target"])[:3, 3]
-        for t in (truth or {}).get("targets", [])
-        if t["name"] == target
+def scene_record(
+    truth: dict | None,
+    detections: dict | None,
+    camera_pose: dict | None,
+    *,
+    time_ms: float = float("nan"),
+    stages_ms: dict[str, float] | None = None,
+    cloud_points: int = 0,
+) -> SceneRecord:
+    """A SceneRecord from one frame's bus messages (decoded Truth, Detections and CameraPose).
+
+    An SfM cloud is placed with the estimated camera pose, so its detections are judged relative to it;
+    a LIDAR cloud, or a scene without a CameraPose, is placed with the true pose.
+    """
+    truth = truth or {}
+    found = [
+        detection_dict(d["target"], d["T_world_target"], d["score"])
+        for d in (detections or {}).get("detections", [])
     ]
-    hypotheses = sorted(
-        (d for d in detections["detections"] if d["target"] == target), key=lambda d: -d["score"]
+    T_true = np.asarray(truth["T_world_cam"]).tolist() if "T_world_cam" in truth else None
+    from_sfm = str((detections or {}).get("source", "")).startswith("sfm")
+    T_est = (
+        np.asarray(camera_pose["T_world_cam"]).tolist()
+        if from_sfm and camera_pose is not None
+        else T_true
     )
-    return score_scene(true_positions, [np.asarray(d["T_world_target"])[:3, 3] for d in hypotheses])
+    return SceneRecord(
+        frame=int(truth.get("frame_seq", -1)),
+        stamp_ns=int((detections or truth).get("stamp_ns", 0)),
+        truth=[
+            {
+                "name": t["name"],
+                "position_m": [float(v) for v in np.asarray(t["T_world_target"])[:3, 3]],
+                "visible_fraction": float(t["visible_fraction"]),
+            }
+            for t in truth.get("targets", [])
+        ],
+        detections=found,
+        time_ms=time_ms,
+        stages_ms=stages_ms or {},
+        cloud_points=cloud_points,
+        error=None if detections is not None else "no answer",
+        T_world_cam_true=T_true,
+        T_world_cam_est=T_est,
+    )
 
 
-def scene_line(truth: dict | None, detections: dict) -> str:
+def score(truth: dict | None, detections: dict, camera_pose: dict | None = None) -> SceneScore:
+    """Judge one scene from its Truth, Detections and (SfM) CameraPose messages, as `atr eval` does."""
+    # The truth lists only the targets present in the scene (sensor_source applies the visibility rule
+    # with the flight's own threshold), so every listed target counts here.
+    return score_record(
+        scene_record(truth, detections, camera_pose), TARGET, present_min_visible_fraction=0.0
+    )
+
+
+def scene_line(truth: dict | None, detections: dict, camera_pose: dict | None = None) -> str:
     """One human line: frames, what was recognised where, and the verdict against truth."""
     frames = "-".join(str(f) for f in detections.get("frame_seqs", []))
     found = (
@@ -37,7 +86,7 @@ def scene_line(truth: dict | None, detections: dict) -> str:
         )
         or "nothing"
     )
-    verdict = score(truth, detections)
+    verdict = score(truth, detections, camera_pose)
     visible = max((t["visible_fraction"] for t in (truth or {}).get("targets", [])), default=0.0)
     error = (
         f", error {verdict.translation_error_m:.2f} m"
@@ -45,6 +94,11 @@ def scene_line(truth: dict | None, detections: dict) -> str:
         else ""
     )
     return f"scene {frames:>7}: {found:<58} | target visible {visible:4.0%} -> {verdict.outcome.upper()}{error}"
+
+
+def is_scene(detections: dict[str, Any]) -> bool:
+    """A Detections message answers a scene when its cloud came from a pair (a first frame has none)."""
+    return len(detections.get("frame_seqs", [])) == 2
 
 
 class FlightPrinter:
@@ -61,11 +115,9 @@ class FlightPrinter:
         self._watch = FlightWatch(session, "uav1", self._print)
 
     @staticmethod
-    def _print(truth: dict | None, detections: dict) -> None:
-        if (
-            len(detections.get("frame_seqs", [])) == 2
-        ):  # a first frame without a partner is no scene
-            print(scene_line(truth, detections), flush=True)
+    def _print(truth: dict | None, detections: dict, camera_pose: dict | None) -> None:
+        if is_scene(detections):
+            print(scene_line(truth, detections, camera_pose), flush=True)
 
     def detach(self) -> None:
         """Stop printing."""
@@ -77,7 +129,7 @@ def summarise(path: Path) -> Counts:
     """TP/FP/FN/TN of a recorded flight; scenes without a pair (empty first clouds) are not scenes."""
     from bus.pipeline import flight_scenes  # noqa: PLC0415
 
-    scenes = [(t, d) for t, d in flight_scenes(path) if len(d.get("frame_seqs", [])) == 2]
+    scenes = [(t, d, c) for t, d, c in flight_scenes(path) if is_scene(d)]
     if not scenes:
         print("no scene was answered; see the logs", file=sys.stderr)
-    return count([score(t, d) for t, d in scenes])
+    return count([score(t, d, c) for t, d, c in scenes])

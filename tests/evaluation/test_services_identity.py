@@ -1,5 +1,6 @@
 """`atr eval` in-process and through the real service graph (`atr simulate` + `atr run`) give the same scenes:
-the same SfM cloud sizes and bit-identical detections (target, position, score), frame by frame.
+the same SfM cloud sizes, bit-identical detections (target, position, score) and the same estimated camera pose,
+frame by frame.
 
 Everything on the service side is real: processes on a Zenoh bus on loopback, lock-step replay, MCAP recording.
 """
@@ -45,3 +46,5 @@ def test_in_process_and_service_graph_give_identical_detections(tmp_path):
         assert [t for t in a.truth if t["visible_fraction"] >= present] == b.truth
         assert a.cloud_points == b.cloud_points > 0
         assert a.detections == b.detections, f"frame {a.frame}"
+        # both judge the detections relative to the sensor, with the same estimated camera pose
+        assert a.T_world_cam_est == b.T_world_cam_est != a.T_world_cam_true, f"frame {a.frame}"

@@ -1,0 +1,121 @@
+"""The demo's verdicts: judged as `atr eval` judges a scene (relative to the sensor), live and from a recording."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from mcap.writer import Writer
+
+from bus import codec, keys
+from bus.pipeline import flight_scenes
+from cli.flight_report import scene_line, score, summarise
+
+STAMP_NS = 2_000_000_000
+TARGET_M = np.array([50.0, 0.0, 0.0])
+DRIFT_M = np.array([6.0, -2.0, 0.5])  # the pose integrator's error at this frame
+
+
+def pose(position_m: np.ndarray, yaw_deg: float = 0.0) -> np.ndarray:
+    c, s = np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))
+    T = np.eye(4)
+    T[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    T[:3, 3] = position_m
+    return T
+
+
+T_CAM_TRUE = pose(np.array([0.0, 0.0, 30.0]))
+T_CAM_EST = pose(np.array([0.0, 0.0, 30.0]) + DRIFT_M, yaw_deg=3.0)
+
+
+def messages(source: str, T_world_target: np.ndarray) -> tuple[dict, dict, dict]:
+    truth = {
+        "stamp_ns": STAMP_NS,
+        "seq": 1,
+        "version": 1,
+        "frame_seq": 1,
+        "T_world_cam": T_CAM_TRUE,
+        "scenario": 1,
+        "run": 1,
+        "targets": [{"name": "t72", "T_world_target": pose(TARGET_M), "visible_fraction": 0.9}],
+    }
+    detections = {
+        "stamp_ns": STAMP_NS,
+        "seq": 1,
+        "version": 1,
+        "cloud_seq": 1,
+        "frame_seqs": [0, 1],
+        "source": source,
+        "detections": [
+            {
+                "target": "t72",
+                "descriptor": "shot",
+                "T_world_target": T_world_target,
+                "score": 80.0,
+                "overlap": 0.5,
+                "inliers": 30,
+            }
+        ],
+    }
+    camera_pose = {
+        "stamp_ns": STAMP_NS,
+        "seq": 1,
+        "version": 1,
+        "frame_seq": 1,
+        "T_world_cam": T_CAM_EST,
+    }
+    return truth, detections, camera_pose
+
+
+def seen_through_the_estimated_pose() -> np.ndarray:
+    """Where an SfM cloud placed with the drifted camera pose puts a target the camera sees exactly."""
+    return T_CAM_EST @ np.linalg.inv(T_CAM_TRUE) @ pose(TARGET_M)
+
+
+def test_an_sfm_detection_is_judged_relative_to_the_sensor():
+    T_found = seen_through_the_estimated_pose()
+    assert np.linalg.norm(T_found[:3, 3] - TARGET_M) > 2.0  # in the world frame it would be an FP
+    verdict = score(*messages("sfm-gftt", T_found))
+    assert verdict.outcome == "tp"
+    assert verdict.translation_error_m < 1e-9
+    assert "-> TP, error 0.00 m" in scene_line(*messages("sfm-gftt", T_found))
+
+
+def test_a_lidar_detection_is_placed_with_the_true_pose_so_drift_does_not_excuse_it():
+    verdict = score(*messages("lidar", seen_through_the_estimated_pose()))
+    assert verdict.outcome == "fp"
+    truth, detections, _ = messages("lidar", pose(TARGET_M + [0.3, 0.0, 0.0]))
+    assert score(truth, detections, None).outcome == "tp"
+
+
+def test_without_a_camera_pose_the_world_frame_is_used():
+    truth, detections, _ = messages("sfm-gftt", seen_through_the_estimated_pose())
+    assert score(truth, detections, None).outcome == "fp"
+
+
+def test_a_recorded_flight_is_summarised_with_the_camera_pose_of_each_frame(tmp_path: Path):
+    path = tmp_path / "flight.mcap"
+    truth, detections, camera_pose = messages("sfm-gftt", seen_through_the_estimated_pose())
+    with open(path, "wb") as stream:
+        writer = Writer(stream)
+        writer.start()
+        for i, (key, message) in enumerate(
+            [
+                (keys.truth("uav1"), truth),
+                (keys.camera_pose("uav1"), camera_pose),
+                (keys.detections("uav1"), detections),
+            ]
+        ):
+            schema = writer.register_schema(keys.message_type(key), "jsonschema", b"{}")
+            channel = writer.register_channel(key, "msgpack", schema)
+            payload = codec.encode(keys.message_type(key), message)
+            writer.add_message(
+                channel, log_time=STAMP_NS + i, data=payload, publish_time=STAMP_NS + i
+            )
+        writer.finish()
+
+    [(t, d, c)] = flight_scenes(path)
+    assert t["frame_seq"] == 1 and d["source"] == "sfm-gftt"
+    assert np.array_equal(c["T_world_cam"], T_CAM_EST)
+    counts = summarise(path)
+    assert (counts.tp, counts.fp, counts.fn) == (1, 0, 0)
