@@ -38,22 +38,14 @@ REPO = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 from _netns import GROUND_IP, TwoHosts, netns_unavailable  # noqa: E402
 
+sys.path.insert(0, str(HERE.parent))
+from _small_camera import SMALL_CAMERA  # noqa: E402
+
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 PY = sys.executable
 UAV = "uav1"
 LINK_PORT = 7000  # the emulator, in the ground namespace, in front of the ground router (7447)
-# Small and quick, the same physics: a 640x480 camera with half the focal length, one target template.
-SETTINGS = [
-    "--set",
-    "sim.width_px=640",
-    "--set",
-    "sim.height_px=480",
-    "--set",
-    "sim.focal_px=1000",
-    "--set",
-    "pipeline.targets=[t72]",
-]
 GROUND_SERVICES = ["recorder", "template_store", "atr_matcher"]
 AIR_SERVICES = ["pose_integrator", "sfm"]
 # Keys published on the ground: everything else in the ground recording crossed the radio link.
@@ -211,7 +203,7 @@ class Split:
                 "lock-step",
                 "--answer-timeout",
                 str(answer_timeout_s),
-                *SETTINGS,
+                *SMALL_CAMERA,
             ],
             env=env,
             cwd=REPO,
@@ -253,7 +245,7 @@ def split(tmp_path_factory: pytest.TempPathFactory) -> Split:
     with TwoHosts() as hosts:
         link = Link(hosts, folder)
         link.start()
-        common = ["--var", f"deploy={deploy.root}", *SETTINGS]
+        common = ["--var", f"deploy={deploy.root}", *SMALL_CAMERA]
         ground = hosts.start(
             "ground",
             [

@@ -16,19 +16,10 @@ from mcap.reader import make_reader
 from bus import keys
 
 REPO = Path(__file__).resolve().parents[2]
-pytestmark = [pytest.mark.e2e, pytest.mark.slow]
+sys.path.insert(0, str(REPO / "tests"))
+from _small_camera import SMALL_CAMERA  # noqa: E402
 
-# Small and quick, the same physics: a 640x480 camera with half the focal length, one target template.
-SETTINGS = [
-    "--set",
-    "sim.width_px=640",
-    "--set",
-    "sim.height_px=480",
-    "--set",
-    "sim.focal_px=1000",
-    "--set",
-    "pipeline.targets=[t72]",
-]
+pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 
 def atr(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
@@ -56,14 +47,25 @@ def data_messages(path: Path) -> dict[str, list[bytes]]:
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("flight") / "flight.mcap"
-    atr("simulate", "--scenario", "1", "--run", "3", "--frames", "4", *SETTINGS, "--out", str(path))
+    atr(
+        "simulate",
+        "--scenario",
+        "1",
+        "--run",
+        "3",
+        "--frames",
+        "4",
+        *SMALL_CAMERA,
+        "--out",
+        str(path),
+    )
     return path
 
 
 def test_run_twice_gives_identical_data_messages(flight, tmp_path):
     outs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
     for out in outs:
-        atr("run", str(flight), "--out", str(out), *SETTINGS)
+        atr("run", str(flight), "--out", str(out), *SMALL_CAMERA)
     first, second = (data_messages(p) for p in outs)
     # Every frame was answered and every stage published.
     assert len(first[keys.detections("uav1")]) == 4

@@ -2,17 +2,11 @@
 the focal length and one target template. The acceptance thresholds are loosened so that these frames give several
 detections (most of them false): comparisons must cover non-empty detections, not only empty ones."""
 
-# A 640x480 camera with half the focal length and one target template: small and quick, the same physics.
-SMALL_CAMERA = [
-    "--set",
-    "sim.width_px=640",
-    "--set",
-    "sim.height_px=480",
-    "--set",
-    "sim.focal_px=1000",
-    "--set",
-    "pipeline.targets=[t72]",
-]
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from _small_camera import SMALL_CAMERA  # noqa: E402
 
 SMALL_FLIGHT = [
     "eval",
