@@ -37,7 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Fly, print per-scene results and the F1; 0 when every process stayed up."""
     from bus.pipeline import fly_layout  # noqa: PLC0415
-    from cli.flight_report import FlightPrinter, summarise  # noqa: PLC0415
+    from cli.flight_report import FlightPrinter, f1_line, summarise  # noqa: PLC0415
 
     out = args.out or Path("runs") / time.strftime("demo-%Y%m%d-%H%M%S") / "flight.mcap"
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -64,10 +64,8 @@ def run(args: argparse.Namespace) -> int:
     )
     printer.detach()
     counts = summarise(out)
-    print(
-        f"\nF1 {counts.f1:.3f} (TP {counts.tp}, FP {counts.fp}, FN {counts.fn}, TN {counts.tn}) over "
-        f"{counts.tp + counts.fp + counts.fn + counts.tn} scenes"
-    )
+    if counts is not None:
+        print("\n" + f1_line(counts))
     print(f"recording: {out}")
     from bus.foxglove_export import export_foxglove  # noqa: PLC0415
 

@@ -125,11 +125,24 @@ class FlightPrinter:
             self._watch.close()
 
 
-def summarise(path: Path) -> Counts:
-    """TP/FP/FN/TN of a recorded flight; scenes without a pair (empty first clouds) are not scenes."""
+def summarise(path: Path) -> Counts | None:
+    """TP/FP/FN/TN of a recorded simulated flight; None when the recording carries no truth (a real flight).
+
+    Scenes without a pair (empty first clouds) are not scenes.
+    """
     from bus.pipeline import flight_scenes  # noqa: PLC0415
 
     scenes = [(t, d, c) for t, d, c in flight_scenes(path) if is_scene(d)]
     if not scenes:
         print("no scene was answered; see the logs", file=sys.stderr)
+    elif all(t is None for t, _, _ in scenes):
+        return None
     return count([score(t, d, c) for t, d, c in scenes])
+
+
+def f1_line(counts: Counts) -> str:
+    """The flight's result in one line: F1 (eq. 5) and its counts."""
+    return (
+        f"F1 {counts.f1:.3f} (TP {counts.tp}, FP {counts.fp}, FN {counts.fn}, TN {counts.tn}) over "
+        f"{counts.tp + counts.fp + counts.fn + counts.tn} scenes"
+    )

@@ -3,7 +3,8 @@
 It starts the layout without its sensor source, waits until every service is ready, replays INPUT's sensor
 messages in lock-step (the next frame only after the pipeline has answered the last), records all traffic to
 OUTPUT, stops the layout, and exits non-zero naming any process that failed. The same recording and config
-give byte-identical data messages (ARCHITECTURE.md §5).
+give byte-identical data messages (ARCHITECTURE.md §5). A simulated flight's recording carries its truth; the
+run's F1 (§III-C, judged as `atr eval` judges it) is printed then.
 
 Examples:
     atr run flight.mcap --out result.mcap
@@ -40,6 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the replay; 0 when every process stayed up and every frame was answered."""
     from bus.pipeline import run_recording  # noqa: PLC0415
+    from cli.flight_report import f1_line, summarise  # noqa: PLC0415
 
     result = run_recording(
         args.input,
@@ -50,6 +52,9 @@ def run(args: argparse.Namespace) -> int:
         ready_timeout_s=args.ready_timeout,
     )
     print(f"replayed {result.frames} frames ({result.timeouts} unanswered) into {args.out}")
+    counts = summarise(args.out) if result.frames and not result.failures else None
+    if counts is not None:  # a simulated flight: judged against its truth as `atr eval` judges it
+        print(f1_line(counts))
     for name, codes in result.failures.items():
         print(
             f"process {name} failed with exit codes {codes}; see {result.log_dir / (name + '.log')}"

@@ -14,6 +14,7 @@ import pytest
 from mcap.reader import make_reader
 
 from bus import keys
+from cli.flight_report import f1_line, summarise
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "tests"))
@@ -64,9 +65,12 @@ def flight(tmp_path_factory) -> Path:
 
 def test_run_twice_gives_identical_data_messages(flight, tmp_path):
     outs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
-    for out in outs:
-        atr("run", str(flight), "--out", str(out), *SMALL_CAMERA)
+    printed = [atr("run", str(flight), "--out", str(out), *SMALL_CAMERA).stdout for out in outs]
     first, second = (data_messages(p) for p in outs)
+    # A simulated flight carries its truth: the run prints its F1, judged from what it recorded.
+    counts = summarise(outs[0])
+    assert counts is not None and counts.tp + counts.fp + counts.fn + counts.tn == 3
+    assert f1_line(counts) in printed[0] and f1_line(counts) in printed[1]
     # Every frame was answered and every stage published.
     assert len(first[keys.detections("uav1")]) == 4
     assert len(first[keys.sfm_cloud("uav1")]) == 4
