@@ -48,7 +48,8 @@ def test_flight_watch_pairs_detections_with_truth_and_first_camera_pose(hub: str
     def on_scene(truth, detections, camera_pose) -> None:
         if detections["stamp_ns"] == WARM_UP_STAMP_NS:
             routed.set()
-        elif truth is not None:  # keys are not ordered against each other: the truth may come later
+        elif truth is not None and camera_pose is not None:
+            # keys are not ordered against each other: the truth and the pose may come later
             scenes[detections["stamp_ns"]] = (truth, detections, camera_pose)
             answered.set()
 
@@ -91,7 +92,9 @@ def test_flight_watch_pairs_detections_with_truth_and_first_camera_pose(hub: str
                 publishing.put(keys.detections(UAV), codec.encode("Detections", detections))
                 if answered.wait(0.05):
                     break
-            assert len(scenes) == frame + 1, f"frame {frame} was never paired with its truth"
+            assert len(scenes) == frame + 1, (
+                f"frame {frame} was never paired with its truth and pose"
+            )
     finally:
         watch.close()
         publishing.close()
