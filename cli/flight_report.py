@@ -126,7 +126,8 @@ class FlightPrinter:
 
 
 def summarise(path: Path) -> Counts | None:
-    """TP/FP/FN/TN of a recorded simulated flight; None when the recording carries no truth (a real flight).
+    """TP/FP/FN/TN of a recorded simulated flight; None when there is nothing to judge: no scene was
+    answered, or the recording carries no truth (a real flight).
 
     Scenes without a pair (empty first clouds) are not scenes.
     """
@@ -135,7 +136,8 @@ def summarise(path: Path) -> Counts | None:
     scenes = [(t, d, c) for t, d, c in flight_scenes(path) if is_scene(d)]
     if not scenes:
         print("no scene was answered; see the logs", file=sys.stderr)
-    elif all(t is None for t, _, _ in scenes):
+        return None
+    if all(t is None for t, _, _ in scenes):
         return None
     return count([score(t, d, c) for t, d, c in scenes])
 

@@ -93,19 +93,12 @@ def test_without_a_camera_pose_the_world_frame_is_used():
     assert score(truth, detections, None).outcome == "fp"
 
 
-def test_a_recorded_flight_is_summarised_with_the_camera_pose_of_each_frame(tmp_path: Path):
-    path = tmp_path / "flight.mcap"
-    truth, detections, camera_pose = messages("sfm-gftt", seen_through_the_estimated_pose())
+def write_recording(path: Path, messages: list[tuple[str, dict]]) -> None:
+    """An MCAP file of bus messages, as the recorder writes them (msgpack payloads)."""
     with open(path, "wb") as stream:
         writer = Writer(stream)
         writer.start()
-        for i, (key, message) in enumerate(
-            [
-                (keys.truth("uav1"), truth),
-                (keys.camera_pose("uav1"), camera_pose),
-                (keys.detections("uav1"), detections),
-            ]
-        ):
+        for i, (key, message) in enumerate(messages):
             schema = writer.register_schema(keys.message_type(key), "jsonschema", b"{}")
             channel = writer.register_channel(key, "msgpack", schema)
             payload = codec.encode(keys.message_type(key), message)
@@ -114,8 +107,34 @@ def test_a_recorded_flight_is_summarised_with_the_camera_pose_of_each_frame(tmp_
             )
         writer.finish()
 
+
+def test_a_recorded_flight_is_summarised_with_the_camera_pose_of_each_frame(tmp_path: Path):
+    path = tmp_path / "flight.mcap"
+    truth, detections, camera_pose = messages("sfm-gftt", seen_through_the_estimated_pose())
+    write_recording(
+        path,
+        [
+            (keys.truth("uav1"), truth),
+            (keys.camera_pose("uav1"), camera_pose),
+            (keys.detections("uav1"), detections),
+        ],
+    )
+
     [(t, d, c)] = flight_scenes(path)
     assert t["frame_seq"] == 1 and d["source"] == "sfm-gftt"
     assert np.array_equal(c["T_world_cam"], T_CAM_EST)
     counts = summarise(path)
     assert (counts.tp, counts.fp, counts.fn) == (1, 0, 0)
+
+
+def test_nothing_to_judge_gives_no_counts(tmp_path: Path):
+    truth, detections, camera_pose = messages("sfm-gftt", seen_through_the_estimated_pose())
+    real_flight = tmp_path / "real.mcap"  # no truth on the bus
+    write_recording(
+        real_flight,
+        [(keys.camera_pose("uav1"), camera_pose), (keys.detections("uav1"), detections)],
+    )
+    assert summarise(real_flight) is None
+    unanswered = tmp_path / "unanswered.mcap"  # the pipeline never answered a pair
+    write_recording(unanswered, [(keys.truth("uav1"), truth)])
+    assert summarise(unanswered) is None
