@@ -434,7 +434,13 @@ def _scene(
             if config.sfm.matcher not in clouds:
                 t_sfm = time.perf_counter()
                 cloud = reconstruct(
-                    images[k - gap], images[k], frame.K, poses[k - gap], poses[k], config.sfm
+                    images[k - gap],
+                    images[k],
+                    frame.K,
+                    poses[k - gap],
+                    poses[k],
+                    config.sfm,
+                    frame.dist_coeffs,
                 )
                 clouds[config.sfm.matcher] = (cloud, 1e3 * (time.perf_counter() - t_sfm))
             cloud, sfm_ms = clouds[config.sfm.matcher]

@@ -16,6 +16,8 @@ from atr.sfm.correspondences import (
 from atr.sfm.triangulation import (
     SfmCloud,
     triangulate_known_pose,
+    undistort_pixels,
+    validate_distortion,
     validate_intrinsics,
     validate_pose,
 )
@@ -28,16 +30,20 @@ def reconstruct(
     T_world_cam_a: np.ndarray,
     T_world_cam_b: np.ndarray,
     config: SfmConfig,
+    dist_coeffs: np.ndarray | None = None,
 ) -> SfmCloud:
     """Reconstruct a sparse world-frame cloud from one frame pair and its known camera poses.
 
     Args:
         image_a: (H, W) or (H, W, 3) BGR uint8 (or float in [0, 1]) image at frame t.
         image_b: the image at frame t + gap, same size and camera.
-        K: (3, 3) camera matrix (pixels), undistorted images.
+        K: (3, 3) camera matrix (pixels).
         T_world_cam_a: (4, 4) world-from-camera (OpenCV axes) at frame t, from the IMU.
         T_world_cam_b: (4, 4) world-from-camera at frame t + gap.
         config: matcher choice and every threshold.
+        dist_coeffs: the lens's OpenCV distortion coefficients; None or zeros for images that are
+            already undistorted. Keypoints are found on the images as given and their pixels
+            undistorted before triangulation.
 
     Returns:
         The cloud; stats hold the counts of each stage and "time_<stage>_s" wall times (seconds,
@@ -45,13 +51,15 @@ def reconstruct(
         usable keypoints.
 
     Raises:
-        InputError: malformed or differently sized images, malformed K, non-finite or non-rigid poses.
+        InputError: malformed or differently sized images, malformed K or dist_coeffs, non-finite or
+            non-rigid poses.
 
     """
     gray_a = as_gray_u8(image_a, "image_a")
     gray_b = as_gray_u8(image_b, "image_b")
     check_same_size(gray_a, gray_b)
     K = validate_intrinsics(K)
+    dist = validate_distortion(dist_coeffs)
     T_wa = validate_pose(T_world_cam_a, "T_world_cam_a")
     T_wb = validate_pose(T_world_cam_b, "T_world_cam_b")
 
@@ -74,6 +82,11 @@ def reconstruct(
     if stats["keypoints"] == 0:
         return SfmCloud.empty("no keypoints in image_a (black or featureless image?)", all_stats)
 
+    if dist is not None:
+        pixels_a, pixels_b = (
+            undistort_pixels(pixels_a, K, dist),
+            undistort_pixels(pixels_b, K, dist),
+        )
     cloud = triangulate_known_pose(pixels_a, pixels_b, K, T_wa, T_wb, config)
     all_stats.update(cloud.stats)
     all_stats["time_triangulation_s"] = time.perf_counter() - matched

@@ -30,7 +30,8 @@ class SfmCloud:
     Attributes:
         points_world_m: (N, 3) float64, metres, world frame (z up).
         sigma_m: (N,) float32, metres, 1-sigma depth uncertainty of each point.
-        pixels: (N, 2) float32, pixel coordinates of each point in the first image (x right, y down).
+        pixels: (N, 2) float32, pixel coordinates of each point in the first image (x right, y down),
+            undistorted when reconstruct was given the lens's coefficients.
         stats: counters and figures of the run: "correspondences", "triangulated", "rejected_behind",
             "rejected_reprojection", "rejected_parallax", "rejected_sigma", "baseline_m", ... .
         reason: empty when the pair was processed; otherwise why the cloud is empty
@@ -122,6 +123,58 @@ def validate_intrinsics(K: np.ndarray) -> np.ndarray:
             f"K {K.tolist()} is not an upper-triangular pinhole matrix with K[2] = [0, 0, 1]"
         )
     return K
+
+
+def validate_distortion(dist_coeffs: np.ndarray | None) -> np.ndarray | None:
+    """Check OpenCV lens distortion coefficients; None when the lens is an ideal pinhole.
+
+    Args:
+        dist_coeffs: (k1, k2, p1, p2[, k3[, k4, k5, k6[, s1..s4[, tx, ty]]]]) or None; an empty or
+            all-zero vector means undistorted images.
+
+    Returns:
+        float64 coefficients, or None for a pinhole.
+
+    Raises:
+        InputError: a length OpenCV does not accept, or non-finite coefficients.
+
+    """
+    if dist_coeffs is None:
+        return None
+    dist = np.asarray(dist_coeffs, dtype=np.float64).ravel()
+    if dist.size == 0 or not np.any(dist):
+        return None
+    if dist.size not in (4, 5, 8, 12, 14):
+        raise InputError(
+            f"dist_coeffs has {dist.size} coefficients, expected 4, 5, 8, 12 or 14 (OpenCV order)"
+        )
+    if not np.all(np.isfinite(dist)):
+        raise InputError(f"dist_coeffs has non-finite entries: {dist.tolist()}")
+    return dist
+
+
+def undistort_pixels(pixels: np.ndarray, K: np.ndarray, dist_coeffs: np.ndarray) -> np.ndarray:
+    """Where each pixel of a distorted image would be through an ideal pinhole with the same K.
+
+    Corners are found and tracked on the image as it came off the lens (local appearance barely
+    changes); only their coordinates are corrected before triangulation, which is cheaper than
+    remapping both images and keeps the paper's detector on the original pixels.
+
+    Args:
+        pixels: (N, 2) pixel coordinates in the distorted image.
+        K: (3, 3) camera matrix.
+        dist_coeffs: OpenCV distortion coefficients (validate_distortion).
+
+    Returns:
+        (N, 2) float32 pixel coordinates in the undistorted image.
+
+    """
+    if len(pixels) == 0:
+        return np.zeros((0, 2), np.float32)
+    undistorted = cv2.undistortPoints(
+        np.asarray(pixels, np.float64).reshape(-1, 1, 2), K, dist_coeffs, None, None, K
+    )
+    return undistorted.reshape(-1, 2).astype(np.float32)
 
 
 def _validate_pixels(pixels_a: np.ndarray, pixels_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -84,6 +84,7 @@ def main(argv: list[str] | None = None) -> int:
                 pose["T_world_cam_t"],
                 pose["T_world_cam_t1"],
                 config,
+                image_b.get("distortion"),
             )
             publish_cloud(
                 _cloud(

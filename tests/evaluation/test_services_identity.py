@@ -1,6 +1,6 @@
 """`atr eval` in-process and through the real service graph (`atr simulate` + `atr run`) give the same scenes:
 the same SfM cloud sizes, bit-identical detections (target, position, score) and the same estimated camera pose,
-frame by frame.
+frame by frame. The camera has a distorted lens, so both paths must carry and apply its coefficients alike.
 
 Everything on the service side is real: processes on a Zenoh bus on loopback, lock-step replay, MCAP recording.
 """
@@ -20,7 +20,9 @@ pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _small_flight import SMALL_FLIGHT  # noqa: E402
 
-ARGS = [*SMALL_FLIGHT, "--frames", "3"]
+# barrel distortion, ~15 px at the corners of the small camera
+LENS = ["--set", "sim.dist_coeffs=[-0.25,0.05,0.0,0.0,0.0]"]
+ARGS = [*SMALL_FLIGHT, *LENS, "--frames", "3"]
 
 
 def evaluate(results, via_services: bool):
