@@ -245,3 +245,58 @@ def test_template_query_that_times_out_is_reported_and_the_matcher_goes_on(hub):
     finally:
         session.close()
         stop_process(service)
+
+
+def test_sfm_reports_a_bad_lens_and_reconstructs_the_next_pair(hub):
+    service = _service("sfm", hub)
+    session = open_session(peer_config(hub))
+    try:
+        _wait_running(session, "sfm")
+        errors, clouds = [], []
+        session.declare_subscriber(
+            "atr/uav1/sfm/errors", lambda s: errors.append(codec.unpack(s.payload.to_bytes()))
+        )
+        session.declare_subscriber(
+            "atr/uav1/sfm/cloud", lambda s: clouds.append(codec.unpack(s.payload.to_bytes()))
+        )
+        time.sleep(0.5)
+        texture = np.random.default_rng(5).integers(0, 255, (48, 64), dtype=np.uint8)
+        lenses = {0: np.zeros(5), 1: np.array([0.1, 0.0, 0.0]), 2: np.zeros(0)}  # 1: 3 coefficients
+        block = zenoh.CongestionControl.BLOCK
+        for frame, lens in lenses.items():
+            image = example("Image") | {
+                "seq": frame,
+                "stamp_ns": 1_000 + frame,
+                "frame_seq": frame,
+                "encoding": "mono8",
+                "data": np.roll(texture, 2 * frame, axis=1),
+                "distortion": lens,
+            }
+            session.put("atr/uav1/camera/image", codec.pack(image), congestion_control=block)
+            if frame > 0:
+                T_t1 = np.eye(4)
+                T_t1[0, 3] = 0.5 * frame  # a sideways step per frame
+                T_t = T_t1.copy()
+                T_t[0, 3] -= 0.5
+                pair = example("RelativePose") | {
+                    "seq": frame - 1,
+                    "stamp_ns": 1_000 + frame,
+                    "stamp_ns_t": 1_000 + frame - 1,
+                    "frame_seq_t": frame - 1,
+                    "frame_seq_t1": frame,
+                    "T_camt1_camt": np.linalg.inv(T_t1) @ T_t,
+                    "T_world_cam_t": T_t,
+                    "T_world_cam_t1": T_t1,
+                }
+                session.put("atr/uav1/pose/relative", codec.pack(pair), congestion_control=block)
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not (errors and len(clouds) >= 2):
+            time.sleep(0.1)
+        assert len(errors) == 1 and "dist_coeffs has 3 coefficients" in errors[0]["reason"]
+        assert errors[0]["input_stamp_ns"] == 1_001  # names frame 1
+        # frame 0 is answered (no partner yet); frame 1's pair failed; frame 2's pair is reconstructed
+        assert [c["frame_seqs"] for c in clouds] == [[0], [1, 2]]
+        assert service.poll() is None  # still alive
+    finally:
+        session.close()
+        stop_process(service)
