@@ -9,6 +9,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
 import zenoh
 
 from bus.launcher import Supervisor, load_layout, observer_session, wait_until_ready
@@ -182,3 +183,20 @@ def flight_scenes(path: Path, uav: str = "uav1") -> list[tuple[dict | None, dict
             else:
                 detections.append(data)
     return [(truth.get(d["stamp_ns"]), d, camera_pose.get(d["stamp_ns"])) for d in detections]
+
+
+def flight_clouds(path: Path, uav: str = "uav1") -> dict[int, np.ndarray]:
+    """The SfM cloud of each frame of a recording, keyed by its stamp_ns: (N, 3) float32 world positions."""
+    from mcap.reader import make_reader  # noqa: PLC0415
+
+    from bus import codec, keys  # noqa: PLC0415
+    from bus.clouds import cloud_points  # noqa: PLC0415
+
+    clouds: dict[int, np.ndarray] = {}
+    with open(path, "rb") as stream:
+        for _, _, message in make_reader(stream).iter_messages(
+            topics=[keys.sfm_cloud(uav)], log_time_order=False
+        ):
+            data = codec.unpack(message.data)
+            clouds[data["stamp_ns"]] = cloud_points(data)
+    return clouds

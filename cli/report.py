@@ -9,6 +9,7 @@ The result files it was made from are copied to <out>/data/ so the report and it
 Examples:
     atr report                                    # from results/latest into docs/evaluation
     atr report --results results/20260101T120000Z --out docs/evaluation
+    atr report --example runs/demo-20260101-120000/flight.mcap   # with Fig. 7 from a recorded flight
 
 """
 
@@ -19,8 +20,11 @@ import json
 import math
 import shutil
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 PIPELINE_ORDER = ("gftt-sfm", "surf-sfm", "lidar", "2d-1", "2d-2", "2d-3", "2d-4")
@@ -47,6 +51,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out", type=Path, default=REPO / "docs" / "evaluation", help="report folder"
     )
+    parser.add_argument(
+        "--example",
+        type=Path,
+        help="a recorded simulated SfM flight (e.g. `atr demo`'s flight.mcap): Fig. 7's examples of "
+        "recognition are drawn from its true positives",
+    )
 
 
 # ------------------------------------------------------------------------------------------- formatting
@@ -69,6 +79,93 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
     return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------------------------- Fig. 7
+
+EXAMPLE_RADIUS_M = 9.0  # the cloud drawn around the target: a T-72 with its gun is ~9.5 m long
+EXAMPLE_SIDE_HALF_WIDTH_M = 6.0  # the side view's horizontal extent either side of the target
+EXAMPLE_SCENES = 3
+
+
+@dataclass
+class ExampleScene:
+    """One recognised scene in the true world frame: cloud, recognised model points, true position."""
+
+    caption: str
+    cloud_m: np.ndarray  # (N, 3) SfM points within EXAMPLE_RADIUS_M of the target
+    model_m: np.ndarray  # (M, 3) the target's surface points, placed by the detection
+    target_m: np.ndarray  # (3,) the true target position
+    camera_m: np.ndarray  # (3,) the true camera position
+
+    def top_view(self) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
+        """From above: east and north."""
+        return self.cloud_m[:, :2], self.model_m[:, :2], (self.target_m[0], self.target_m[1])
+
+    def side_view(self) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
+        """Seen from the camera's side: the horizontal axis across the line of sight, and height."""
+        sight = self.target_m[:2] - self.camera_m[:2]
+        across = np.array([-sight[1], sight[0]]) / max(float(np.linalg.norm(sight)), 1e-9)
+
+        def project(points: np.ndarray) -> np.ndarray:
+            return np.c_[(points[:, :2] - self.target_m[:2]) @ across, points[:, 2]]
+
+        return project(self.cloud_m), project(self.model_m), (0.0, self.target_m[2])
+
+
+def example_scenes(recording: Path, count: int = EXAMPLE_SCENES) -> list[ExampleScene]:
+    """Up to `count` true positives of a recorded simulated flight, spread over the flight (so over azimuth)."""
+    import open3d as o3d  # noqa: PLC0415
+
+    from atr.sim.vehicles import t72  # noqa: PLC0415
+    from bus.pipeline import flight_clouds, flight_scenes  # noqa: PLC0415
+    from cli.flight_report import is_scene, score  # noqa: PLC0415
+
+    clouds = flight_clouds(recording)
+    hits = []
+    for truth, detections, camera_pose in flight_scenes(recording):
+        if truth is None or not is_scene(detections) or detections["stamp_ns"] not in clouds:
+            continue
+        verdict = score(truth, detections, camera_pose)
+        if verdict.outcome == "tp":
+            hits.append((truth, detections, camera_pose, verdict.translation_error_m))
+    if not hits:
+        return []
+    mesh = t72()
+    surface = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(mesh.vertices), o3d.utility.Vector3iVector(mesh.triangles)
+    )
+    model = np.asarray(surface.sample_points_uniformly(number_of_points=4000).points)
+    picked = [hits[round(i)] for i in np.linspace(0, len(hits) - 1, min(count, len(hits)))]
+    scenes = []
+    for truth, detections, camera_pose, error_m in picked:
+        T_true = np.asarray(truth["T_world_cam"], np.float64)
+        # the cloud and the detection sit in the pipeline's (estimated) world; draw them in the true one
+        T_est = np.asarray((camera_pose or truth)["T_world_cam"], np.float64)
+        est_to_true = T_true @ np.linalg.inv(T_est)
+        target = next(t for t in truth["targets"] if t["name"] == "t72")
+        target_m = np.asarray(target["T_world_target"], np.float64)[:3, 3]
+        best = max(
+            (d for d in detections["detections"] if d["target"] == "t72"), key=lambda d: d["score"]
+        )
+        T_model = est_to_true @ np.asarray(best["T_world_target"], np.float64)
+        cloud = clouds[detections["stamp_ns"]].astype(np.float64) @ est_to_true[:3, :3].T
+        cloud += est_to_true[:3, 3]
+        near = np.linalg.norm(cloud[:, :2] - target_m[:2], axis=1) < EXAMPLE_RADIUS_M
+        camera_m = T_true[:3, 3]
+        range_m = float(np.linalg.norm(camera_m - target_m))
+        frames = "-".join(str(f) for f in detections["frame_seqs"])
+        scenes.append(
+            ExampleScene(
+                caption=f"frames {frames}, {range_m:.0f} m, {int(near.sum())} cloud points here, "
+                f"error {error_m:.2f} m",
+                cloud_m=cloud[near],
+                model_m=model @ T_model[:3, :3].T + T_model[:3, 3],
+                target_m=target_m,
+                camera_m=camera_m,
+            )
+        )
+    return scenes
 
 
 # ------------------------------------------------------------------------------------------- figures
@@ -178,6 +275,50 @@ class Figures:
         plt.close(fig)
         return f"![{title}]({name}.png)"
 
+    def examples(self, name: str, title: str, scenes: Sequence[ExampleScene]) -> str:
+        """Fig. 7: per scene, the SfM cloud around the target from above and from the camera's side,
+        with the recognised model laid under it where the matcher put it.
+        """
+        if self.plt is None or not scenes:
+            return ""
+        plt = self.plt
+        fig, axes = plt.subplots(
+            2,
+            len(scenes),
+            figsize=(3.8 * len(scenes), 5.6),
+            squeeze=False,
+            gridspec_kw={"height_ratios": [2.6, 1.0]},
+        )
+        for column, scene in enumerate(scenes):
+            top, side = axes[0][column], axes[1][column]
+            for ax, (cloud, model, target) in ((top, scene.top_view()), (side, scene.side_view())):
+                ax.scatter(model[:, 0], model[:, 1], s=2, c="tab:red", alpha=0.2, linewidths=0)
+                ax.scatter(cloud[:, 0], cloud[:, 1], s=1.5, c="black", linewidths=0)
+                ax.plot(*target, "x", color="tab:green", ms=8, mew=2)
+                ax.set_aspect("equal")
+                ax.tick_params(labelsize=7)
+                ax.grid(alpha=0.3)
+            side.set_xlim(-EXAMPLE_SIDE_HALF_WIDTH_M, EXAMPLE_SIDE_HALF_WIDTH_M)
+            side.set_ylim(-0.5, 3.5)
+            top.set_title(scene.caption, fontsize=8)
+            top.set_xlabel("east (m)", fontsize=7)
+            top.set_ylabel("north (m)", fontsize=7)
+            side.set_xlabel("across the line of sight (m)", fontsize=7)
+            side.set_ylabel("height (m)", fontsize=7)
+        handles = [
+            plt.Line2D([], [], ls="", marker="o", ms=4, color="black", label="SfM cloud"),
+            plt.Line2D([], [], ls="", marker="o", ms=4, color="tab:red", label="recognised T-72"),
+            plt.Line2D(
+                [], [], ls="", marker="x", ms=6, mew=2, color="tab:green", label="true position"
+            ),
+        ]
+        fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=8)
+        fig.suptitle(title, fontsize=11)
+        fig.tight_layout(rect=(0, 0.05, 1, 1))
+        fig.savefig(self.out / f"{name}.png", dpi=110)
+        plt.close(fig)
+        return f"![{title}]({name}.png)"
+
 
 # ------------------------------------------------------------------------------------------- sections
 
@@ -224,10 +365,32 @@ def _best(group: Mapping[str, Mapping[str, Any]], pipeline_prefix: str) -> tuple
     return max(cands, key=lambda x: x[1]) if cands else None
 
 
+def _examples_section(figs: Figures, recording: Path) -> list[str]:
+    """Fig. 7: examples of SfM 3D ATR from a recorded flight."""
+    scenes = example_scenes(recording)
+    lines = ["## Examples of SfM 3D ATR (Fig. 7)", ""]
+    if not scenes:
+        return [*lines, f"`{recording.name}` holds no recognised scene to draw."]
+    return [
+        *lines,
+        f"True positives of `{recording.parent.name}/{recording.name}`, spread over its orbit: the two-view "
+        f"SfM cloud within {EXAMPLE_RADIUS_M:.0f} m of the target (grey), the T-72 model placed by the "
+        "matcher's pose (red) and the true position (green), from above and from the camera's side. The "
+        "paper's Fig. 7 shows the same: a cloud from two images with the recognised model on it.",
+        "",
+        figs.examples("fig7_examples", "Examples of SfM 3D ATR (Fig. 7)", scenes),
+    ]
+
+
 def build_report(
-    details: Sequence[Mapping[str, Any]], configs: Sequence[Mapping[str, Any]], out: Path
+    details: Sequence[Mapping[str, Any]],
+    configs: Sequence[Mapping[str, Any]],
+    out: Path,
+    example: Path | None = None,
 ) -> str:
-    """Build the report's Markdown (figures written into `out`); `configs` of every result."""
+    """Build the report's Markdown (figures written into `out`); `configs` of every result; Fig. 7 from the
+    recorded flight `example` when given.
+    """
     from atr.evaluation.aggregate import (  # noqa: PLC0415
         DESCRIPTOR_LENGTH,
         OBLIQUITY_CLASS,
@@ -364,6 +527,8 @@ def build_report(
             {"all scenes": {a: v["f1"] for a, v in overall.items()}},
         ),
     ]
+    if example is not None:
+        parts += ["", *_examples_section(figs, example)]
     # Fig. 9: translation error
     s3 = select(clean, scenario=3)
     terr_rows = s3 if s3 else clean
@@ -557,6 +722,6 @@ def run(args: argparse.Namespace) -> int:
         target.mkdir(exist_ok=True)
         for name in ("results.json", "details.json", "config.json"):
             shutil.copyfile(folder / name, target / name)
-    (out / "README.md").write_text(build_report(details, configs, out))
+    (out / "README.md").write_text(build_report(details, configs, out, args.example))
     print(f"report written to {out / 'README.md'}")
     return 0

@@ -1,0 +1,84 @@
+"""`atr report`'s Fig. 7: recognised scenes of a recorded flight, drawn in the true world frame."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from bus import keys
+from cli.report import EXAMPLE_RADIUS_M, Figures, _examples_section, example_scenes
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from test_flight_report import (  # noqa: E402
+    STAMP_NS,
+    T_CAM_EST,
+    T_CAM_TRUE,
+    TARGET_M,
+    messages,
+    seen_through_the_estimated_pose,
+    write_recording,
+)
+
+
+def sfm_cloud(points_true_m: np.ndarray) -> dict:
+    """The PointCloud the sfm service publishes: positions placed with the estimated camera pose."""
+    est_from_true = T_CAM_EST @ np.linalg.inv(T_CAM_TRUE)
+    points = points_true_m @ est_from_true[:3, :3].T + est_from_true[:3, 3]
+    return {
+        "stamp_ns": STAMP_NS,
+        "seq": 1,
+        "version": 1,
+        "source": "sfm-gftt",
+        "frame_seqs": [0, 1],
+        "points_m": points.astype(np.float32),
+        "sigma_m": np.full(len(points), 0.1, np.float32),
+        "viewpoint_m": T_CAM_EST[:3, 3],
+    }
+
+
+def flight(path: Path, T_found: np.ndarray) -> np.ndarray:
+    """A one-scene recording: a hull-sized box of points at the target and ground 20 m away."""
+    rng = np.random.default_rng(3)
+    hull = TARGET_M + rng.uniform([-3.0, -1.5, 0.0], [3.0, 1.5, 2.2], size=(300, 3))
+    far = TARGET_M + np.array([20.0, 0.0, 0.0]) + rng.uniform(-1.0, 1.0, size=(50, 3))
+    truth, detections, camera_pose = messages("sfm-gftt", T_found)
+    write_recording(
+        path,
+        [
+            (keys.truth("uav1"), truth),
+            (keys.camera_pose("uav1"), camera_pose),
+            (keys.sfm_cloud("uav1"), sfm_cloud(np.vstack([hull, far]))),
+            (keys.detections("uav1"), detections),
+        ],
+    )
+    return hull
+
+
+def test_a_recognised_scene_is_drawn_in_the_true_frame(tmp_path: Path):
+    path = tmp_path / "flight.mcap"
+    hull = flight(path, seen_through_the_estimated_pose())  # a TP relative to the sensor
+    [scene] = example_scenes(path)
+    # the cloud is brought back from the drifted frame; only the points around the target are kept
+    assert len(scene.cloud_m) == len(hull)
+    assert np.allclose(np.sort(scene.cloud_m, axis=0), np.sort(hull, axis=0), atol=1e-4)
+    assert np.max(np.linalg.norm(scene.cloud_m[:, :2] - TARGET_M[:2], axis=1)) < EXAMPLE_RADIUS_M
+    # the model stands where the detection put it, which is the true target position here
+    assert np.linalg.norm(np.median(scene.model_m[:, :2], axis=0) - TARGET_M[:2]) < 1.0
+    assert np.allclose(scene.target_m, TARGET_M) and np.allclose(scene.camera_m, T_CAM_TRUE[:3, 3])
+    # seen from the side: heights kept, the horizontal offset taken across the line of sight (here y)
+    across, height = scene.side_view()[0].T
+    assert np.array_equal(height, scene.cloud_m[:, 2])
+    assert np.allclose(np.abs(across), np.abs(scene.cloud_m[:, 1] - TARGET_M[1]), atol=1e-6)
+    section = "\n".join(_examples_section(Figures(tmp_path), path))
+    assert "fig7_examples.png" in section and (tmp_path / "fig7_examples.png").stat().st_size > 0
+
+
+def test_a_flight_without_a_true_positive_has_nothing_to_draw(tmp_path: Path):
+    path = tmp_path / "flight.mcap"
+    T_off = seen_through_the_estimated_pose()
+    T_off[:3, 3] += [5.0, 0.0, 0.0]  # 5 m off the target: an FP
+    flight(path, T_off)
+    assert example_scenes(path) == []
+    assert "holds no recognised scene" in "\n".join(_examples_section(Figures(tmp_path), path))
