@@ -22,6 +22,7 @@ from atr.recognition.steps import (
     ransac_per_group,
     rigid_transform,
     uniform_subsample,
+    upright_rigid_transform,
     verify_with_icp,
 )
 from atr.recognition.template import (
@@ -58,5 +59,6 @@ __all__ = [
     "suppress_non_maxima",
     "template_from_points",
     "uniform_subsample",
+    "upright_rigid_transform",
     "verify_with_icp",
 ]

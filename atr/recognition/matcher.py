@@ -336,6 +336,7 @@ def recognize(
                 config.ransac_iterations,
                 config.ransac_inlier_m,
                 rng,
+                upright=band is not None,
             )
             if h is not None and h.inliers >= config.min_group_size:
                 hyps.append((vi, h))

@@ -438,6 +438,35 @@ class Hypothesis:
     group_size: int
 
 
+def upright_rigid_transform(model_xyz: np.ndarray, scene_xyz: np.ndarray) -> np.ndarray:
+    """Least-squares transform made of a turn about the vertical and a translation; (4, 4) float64.
+
+    The pose of a vehicle standing on the ground: its heading (2D Procrustes on the horizontal
+    coordinates) and its position. It cannot tilt.
+    """
+    mc, sc = model_xyz.mean(0), scene_xyz.mean(0)
+    yaw = _upright_yaw(model_xyz[None] - mc, scene_xyz[None] - sc)[0]
+    T = np.eye(4)
+    T[:3, :3] = _turns_about_z(np.array([yaw]))[0]
+    T[:3, 3] = sc - T[:3, :3] @ mc
+    return T
+
+
+def _upright_yaw(model_centred: np.ndarray, scene_centred: np.ndarray) -> np.ndarray:
+    """(K,) least-squares heading of each of K centred point sets (K, n, 3) -> (K, n, 3)."""
+    a, b = model_centred[..., :2], scene_centred[..., :2]
+    dot = np.sum(a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1], axis=-1)
+    cross = np.sum(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0], axis=-1)
+    return np.arctan2(cross, dot)
+
+
+def _turns_about_z(yaw: np.ndarray) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.zeros((len(yaw), 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
+    return R
+
+
 def ransac_per_group(
     scene_keypoints: np.ndarray,
     model_keypoints: np.ndarray,
@@ -446,11 +475,15 @@ def ransac_per_group(
     iterations: int,
     inlier_m: float,
     rng: np.random.Generator,
+    upright: bool = False,
 ) -> Hypothesis | None:
     """RANSAC on one consistent group (§II-B-2, 1000 iterations) -> a transformation hypothesis.
 
-    Each iteration fits a rigid transform to 3 random correspondences; the one with most inliers (scene
-    residual < ``inlier_m``) is refitted on its inliers.
+    Each iteration fits a transform to 3 random correspondences; the one with most inliers (scene
+    residual < ``inlier_m``) is refitted on its inliers. The transform is rigid (Kabsch, the paper's), or
+    with ``upright`` a heading and a translation only (``upright_rigid_transform``): a ground vehicle
+    stands on the ground, and a side view's nearly coplanar keypoints otherwise let the 3-point fit tilt
+    the model by tens of degrees (docs/recognition.md).
 
     Returns:
         The hypothesis, or None when the group has fewer than 3 correspondences or no non-degenerate sample.
@@ -466,15 +499,21 @@ def ransac_per_group(
     idx = idx[ok]
     if len(idx) == 0:
         return None
-    mc, sc, H = _kernels.sample_cross_covariances(m, s, idx)
-    U, _, Vt = np.linalg.svd(H)
-    R, t = _kernels.kabsch_poses(U, Vt, mc, sc)
+    if upright:
+        ms, ss = m[idx], s[idx]
+        mc, sc = ms.mean(axis=1), ss.mean(axis=1)
+        R = _turns_about_z(_upright_yaw(ms - mc[:, None], ss - sc[:, None]))
+        t = sc - np.einsum("kij,kj->ki", R, mc)
+    else:
+        mc, sc, H = _kernels.sample_cross_covariances(m, s, idx)
+        U, _, Vt = np.linalg.svd(H)
+        R, t = _kernels.kabsch_poses(U, Vt, mc, sc)
     best, best_count = _kernels.most_inliers(R, t, m, s, float(inlier_m) ** 2)
     if best_count < 3:
         return None
     R_best_T = np.ascontiguousarray(R[best].T)  # C order as before: BLAS rounds by layout
     mask = np.sum(((m @ R_best_T + t[best]) - s) ** 2, axis=1) < inlier_m**2
-    T = rigid_transform(m[mask], s[mask])
+    T = (upright_rigid_transform if upright else rigid_transform)(m[mask], s[mask])
     final = np.sum(((m @ T[:3, :3].T + T[:3, 3]) - s) ** 2, axis=1) < inlier_m**2
     return Hypothesis(T_scene_model=T, inliers=int(max(final.sum(), best_count)), group_size=n)
 
