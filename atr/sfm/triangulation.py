@@ -142,7 +142,7 @@ def validate_distortion(dist_coeffs: np.ndarray | None) -> np.ndarray | None:
     if dist_coeffs is None:
         return None
     dist = np.asarray(dist_coeffs, dtype=np.float64).ravel()
-    if dist.size == 0 or not np.any(dist):
+    if dist.size == 0:
         return None
     if dist.size not in (4, 5, 8, 12, 14):
         raise InputError(
@@ -150,7 +150,7 @@ def validate_distortion(dist_coeffs: np.ndarray | None) -> np.ndarray | None:
         )
     if not np.all(np.isfinite(dist)):
         raise InputError(f"dist_coeffs has non-finite entries: {dist.tolist()}")
-    return dist
+    return dist if np.any(dist) else None
 
 
 def undistort_pixels(pixels: np.ndarray, K: np.ndarray, dist_coeffs: np.ndarray) -> np.ndarray:

@@ -145,5 +145,7 @@ def test_bad_images_raise_input_error(pair, plane_scene) -> None:
         reconstruct(img, img, plane_scene.K, T_a, T_nan, SfmConfig())
     with pytest.raises(InputError, match="3 coefficients"):
         reconstruct(img, img, plane_scene.K, T_a, T_b, SfmConfig(), dist_coeffs=np.ones(3))
+    with pytest.raises(InputError, match="3 coefficients"):  # zeros too: the vector is malformed
+        reconstruct(img, img, plane_scene.K, T_a, T_b, SfmConfig(), dist_coeffs=np.zeros(3))
     with pytest.raises(InputError, match="non-finite"):
         reconstruct(img, img, plane_scene.K, T_a, T_b, SfmConfig(), dist_coeffs=BARREL + np.nan)
