@@ -119,7 +119,7 @@ def example_scenes(recording: Path, count: int = EXAMPLE_SCENES) -> list[Example
 
     from atr.sim.vehicles import t72  # noqa: PLC0415
     from bus.pipeline import flight_clouds, flight_scenes  # noqa: PLC0415
-    from cli.flight_report import is_scene, score  # noqa: PLC0415
+    from cli.flight_report import TARGET, is_scene, score  # noqa: PLC0415
 
     clouds = flight_clouds(recording)
     hits = []
@@ -143,10 +143,10 @@ def example_scenes(recording: Path, count: int = EXAMPLE_SCENES) -> list[Example
         # the cloud and the detection sit in the pipeline's (estimated) world; draw them in the true one
         T_est = np.asarray((camera_pose or truth)["T_world_cam"], np.float64)
         est_to_true = T_true @ np.linalg.inv(T_est)
-        target = next(t for t in truth["targets"] if t["name"] == "t72")
+        target = next(t for t in truth["targets"] if t["name"] == TARGET)
         target_m = np.asarray(target["T_world_target"], np.float64)[:3, 3]
         best = max(
-            (d for d in detections["detections"] if d["target"] == "t72"), key=lambda d: d["score"]
+            (d for d in detections["detections"] if d["target"] == TARGET), key=lambda d: d["score"]
         )
         T_model = est_to_true @ np.asarray(best["T_world_target"], np.float64)
         cloud = clouds[detections["stamp_ns"]].astype(np.float64) @ est_to_true[:3, :3].T
@@ -157,8 +157,8 @@ def example_scenes(recording: Path, count: int = EXAMPLE_SCENES) -> list[Example
         frames = "-".join(str(f) for f in detections["frame_seqs"])
         scenes.append(
             ExampleScene(
-                caption=f"frames {frames}, {range_m:.0f} m, {int(near.sum())} cloud points here, "
-                f"error {error_m:.2f} m",
+                caption=f"frames {frames}, {range_m:.0f} m, {int(near.sum())} points within "
+                f"{EXAMPLE_RADIUS_M:.0f} m, error {error_m:.2f} m",
                 cloud_m=cloud[near],
                 model_m=model @ T_model[:3, :3].T + T_model[:3, 3],
                 target_m=target_m,
