@@ -51,6 +51,11 @@ class RecognitionConfig:
         k_icp_gate: ICP maximum correspondence distance / resolution (Open3D's registration example
             uses 0.4-1.5 x voxel; 2 lets ICP pull in a hypothesis that RANSAC placed a voxel off).
         icp_iterations: ICP iterations in verification (Open3D's default 30).
+        k_icp_reach: ICP refines a hypothesis on the scene vertices within the model's radius, the ICP
+            gate and this / resolution of where RANSAC placed it (3 m), not on the whole scene; a
+            hypothesis that moves further is refined again on the whole scene, so the outcome does not
+            change (tuning set: ICP moves a hypothesis's centre 0.35 m median, 2.2 m at the 99th
+            percentile). It is a time setting: a kd-tree of the neighbourhood instead of the scene.
         k_overlap: a model vertex overlaps the scene when a scene vertex lies within this distance / resolution.
         min_overlap: a hypothesis is accepted when at least this fraction of the model's vertices overlap the
             scene after ICP (§II-B-2 "overlapping vertices that exceed a threshold"; the paper gives no
@@ -123,6 +128,7 @@ class RecognitionConfig:
     k_ransac_inlier: float = 1.0
     k_icp_gate: float = 2.0
     icp_iterations: int = 30
+    k_icp_reach: float = 10.0
     k_overlap: float = 1.0
     min_overlap: float = 0.3
     min_overlap_vertices: int = 20
@@ -211,6 +217,11 @@ class RecognitionConfig:
     def icp_gate_m(self) -> float:
         """ICP maximum correspondence distance, metres."""
         return self.k_icp_gate * self.resolution_m
+
+    @property
+    def icp_reach_m(self) -> float:
+        """How far ICP may move a hypothesis on its cropped neighbourhood, metres."""
+        return self.k_icp_reach * self.resolution_m
 
     @property
     def overlap_m(self) -> float:

@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import open3d as o3d
 from scipy.spatial import cKDTree
 
 from atr.errors import ConfigError, InputError
@@ -248,7 +247,6 @@ def recognize(
     ground_z = None if band is None else surface[:, 2] - height
 
     scene_tree = cKDTree(surface)
-    scene_cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(surface))
     scene_desc: dict[tuple[str, float], np.ndarray] = {}
     candidates: list[tuple[Detection, np.ndarray, float]] = []
     per_target: list[dict[str, Any]] = []
@@ -359,10 +357,10 @@ def recognize(
                 config.icp_iterations,
                 ground_slab_m=config.ground_slab_m,
                 scene_tree=scene_tree,
-                scene_cloud=scene_cloud,
                 model_tree=model_tree,
                 scene_sigma_m=sigma,
                 k_clutter_sigma=config.k_clutter_sigma,
+                icp_reach_m=config.icp_reach_m,
             )
             on_ground = True
             if ground_xy is not None:

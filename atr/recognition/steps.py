@@ -453,7 +453,7 @@ def upright_rigid_transform(model_xyz: np.ndarray, scene_xyz: np.ndarray) -> np.
 
 
 def _upright_yaw(model_centred: np.ndarray, scene_centred: np.ndarray) -> np.ndarray:
-    """(K,) least-squares heading of each of K centred point sets (K, n, 3) -> (K, n, 3)."""
+    """Least-squares heading (K,) turning each of K centred model sets (K, n, 3) onto its scene set."""
     a, b = model_centred[..., :2], scene_centred[..., :2]
     dot = np.sum(a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1], axis=-1)
     cross = np.sum(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0], axis=-1)
@@ -548,10 +548,10 @@ def verify_with_icp(
     icp_iterations: int,
     ground_slab_m: float = 0.0,
     scene_tree: cKDTree | None = None,
-    scene_cloud: o3d.geometry.PointCloud | None = None,
     model_tree: cKDTree | None = None,
     scene_sigma_m: np.ndarray | None = None,
     k_clutter_sigma: float = 0.0,
+    icp_reach_m: float | None = None,
 ) -> Verification:
     """Apply a hypothesis to the model, refine it with ICP against the scene, measure the fit (§II-B-2).
 
@@ -571,36 +571,54 @@ def verify_with_icp(
         icp_iterations: ICP iteration cap.
         ground_slab_m: height above the model's lowest point ignored by the clutter measure, metres.
         scene_tree: optional prebuilt kd-tree of ``scene_points`` (reused across hypotheses).
-        scene_cloud: optional prebuilt Open3D cloud of ``scene_points``.
         model_tree: optional prebuilt kd-tree of ``model_points``.
         scene_sigma_m: optional (S,) 1-sigma position uncertainty of each scene vertex, metres (SfM
             gives it; it grows with range). A scene vertex then counts as explained by the model within
             max(``overlap_m``, ``k_clutter_sigma`` x its sigma): noise is not clutter.
         k_clutter_sigma: see ``scene_sigma_m``.
+        icp_reach_m: when given, ICP runs on the scene vertices within the model's radius +
+            ``icp_gate_m`` + this distance of the placed model's centre, not on the whole scene:
+            Open3D builds a kd-tree of its target at every call, which on a LIDAR scene costs far more
+            than the ICP itself. ICP can only pair vertices within the gate of the moving model, so the
+            result is the same as on the whole scene as long as the model's centre moves less than this;
+            a hypothesis whose refined centre moved further is refined again on the whole scene.
 
     Returns:
         The refined pose and its fit with the scene.
 
     """
     model_points = np.asarray(model_points, np.float64)
-    src = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(model_points))
-    if scene_cloud is None:
-        scene_cloud = o3d.geometry.PointCloud(
-            o3d.utility.Vector3dVector(np.asarray(scene_points, np.float64))
-        )
-    result = o3d.pipelines.registration.registration_icp(
-        src,
-        scene_cloud,
-        float(icp_gate_m),
-        np.asarray(T_scene_model, np.float64),
-        o3d.pipelines.registration.TransformationEstimationPointToPoint(),
-        o3d.pipelines.registration.ICPConvergenceCriteria(max_iteration=int(icp_iterations)),
-    )
-    T = np.asarray(result.transformation, np.float64).copy()
+    scene_points = np.asarray(scene_points, np.float64)
+    T_initial = np.asarray(T_scene_model, np.float64)
     if scene_tree is None:
         scene_tree = cKDTree(scene_points)
     if model_tree is None:
         model_tree = cKDTree(model_points)
+    src = _open3d_cloud(model_points)
+
+    def icp(target: o3d.geometry.PointCloud) -> np.ndarray:
+        result = o3d.pipelines.registration.registration_icp(
+            src,
+            target,
+            float(icp_gate_m),
+            T_initial,
+            o3d.pipelines.registration.TransformationEstimationPointToPoint(),
+            o3d.pipelines.registration.ICPConvergenceCriteria(max_iteration=int(icp_iterations)),
+        )
+        return np.asarray(result.transformation, np.float64).copy()
+
+    T = None
+    if icp_reach_m is not None:
+        model_centre = model_points.mean(axis=0)
+        model_radius = float(np.linalg.norm(model_points - model_centre, axis=1).max())
+        placed_centre = T_initial[:3, :3] @ model_centre + T_initial[:3, 3]
+        near = scene_tree.query_ball_point(placed_centre, model_radius + icp_gate_m + icp_reach_m)
+        # nothing within reach: ICP would find no pair on the whole scene either
+        T = T_initial.copy() if not near else icp(_open3d_cloud(scene_points[np.sort(near)]))
+        if np.linalg.norm(T[:3, :3] @ model_centre + T[:3, 3] - placed_centre) > icp_reach_m:
+            T = None
+    if T is None:
+        T = icp(_open3d_cloud(scene_points))
     R, t = T[:3, :3], T[:3, 3]
     # Scene side: scene vertices inside the model's box, in the model frame.
     lo, hi = model_points.min(0), model_points.max(0)
@@ -638,3 +656,7 @@ def verify_with_icp(
         dm, _ = model_tree.query(inside_local, distance_upper_bound=float(explain_m.max()))
         clutter = float(np.mean(~(dm <= explain_m)))
     return Verification(T, n_hit / max(len(model_points), 1), n_hit, clutter, rmse)
+
+
+def _open3d_cloud(points_m: np.ndarray) -> o3d.geometry.PointCloud:
+    return o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points_m))

@@ -380,6 +380,50 @@ def test_verify_overlap_follows_a_sparse_scene_spacing_but_not_a_dense_one():
     assert v_pole.clutter > v.clutter
 
 
+def test_verify_on_the_hypothesis_neighbourhood_equals_verify_on_the_whole_scene():
+    model = _box_surface(0.3)
+    rng = np.random.default_rng(3)
+    # the box half a metre off its hypothesis, on a wide ground it touches
+    target = model + np.array([20.0, 10.0, 0.0]) + rng.normal(0.0, 0.03, model.shape)
+    ground = np.stack(np.meshgrid(np.arange(-20, 60, 0.3), np.arange(-30, 50, 0.3), [0.0]), -1)
+    scene = np.concatenate([ground.reshape(-1, 3), target])
+    T = np.eye(4)
+    T[:3, 3] = [20.4, 9.7, 0.1]
+    whole = verify_with_icp(model, scene, T, 0.6, 0.3, 30)
+    near = verify_with_icp(model, scene, T, 0.6, 0.3, 30, icp_reach_m=3.0)
+    assert np.linalg.norm(whole.T_scene_model[:3, 3] - T[:3, 3]) > 0.2  # ICP did move it
+    assert whole.overlap > 0.9
+    assert np.array_equal(near.T_scene_model, whole.T_scene_model)
+    assert (near.overlap, near.clutter) == (whole.overlap, whole.clutter)
+    # nothing within reach: the hypothesis stays where RANSAC put it, as on the whole scene
+    T_far = np.eye(4)
+    T_far[:3, 3] = [500.0, 0.0, 0.0]
+    far_whole = verify_with_icp(model, scene, T_far, 0.6, 0.3, 30)
+    far_near = verify_with_icp(model, scene, T_far, 0.6, 0.3, 30, icp_reach_m=3.0)
+    assert np.array_equal(far_near.T_scene_model, T_far)
+    assert np.array_equal(far_whole.T_scene_model, T_far)
+
+
+def test_verify_refines_again_on_the_whole_scene_a_hypothesis_that_moves_beyond_reach():
+    # a flat 2 x 2 m patch placed 1.5 m off itself: ICP crawls back over a metre, and the part of
+    # the scene it ends on lies beyond the neighbourhood of where it started
+    g = np.arange(0.0, 2.0001, 0.1)
+    patch = np.stack(np.meshgrid(g, g, [0.0]), -1).reshape(-1, 3)
+    T = np.eye(4)
+    T[0, 3] = 1.5
+    whole = verify_with_icp(patch, patch, T, 0.6, 0.3, 100)
+    assert whole.T_scene_model[0, 3] < 0.5
+    start = patch.mean(0) + T[:3, 3]
+    reach_m = 0.05
+    radius = np.linalg.norm(patch - patch.mean(0), axis=1).max() + 0.6 + reach_m
+    crop = patch[np.linalg.norm(patch - start, axis=1) <= radius]
+    assert not np.array_equal(
+        verify_with_icp(patch, crop, T, 0.6, 0.3, 100).T_scene_model, whole.T_scene_model
+    )
+    near = verify_with_icp(patch, patch, T, 0.6, 0.3, 100, icp_reach_m=reach_m)
+    assert np.array_equal(near.T_scene_model, whole.T_scene_model)
+
+
 def test_verify_does_not_count_a_points_own_noise_as_clutter():
     model = _box_surface(0.3)
     rng = np.random.default_rng(0)
