@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -44,6 +45,17 @@ class SfmConfig:
     """Stop iterating when the update is below this (px). OpenCV's default criteria value."""
     klt_max_forward_backward_px: float = 1.0
     """Forward-backward error gate (px), §II-B-1 with Kalal et al. 2010 [24]: 1 px."""
+
+    # --- Pose-aided second pass (ours, not the paper's; docs/sfm.md "Pose-aided KLT") ---
+    klt_aided_pyramid_levels: int = 2
+    """Levels of a second KLT pass given to the corners the paper's tracker loses (0 = no second pass).
+    It starts each corner where the known relative pose puts it if it lies on the fixation plane, so a
+    shallow pyramid suffices; the deep pyramid's coarse levels are what loses a small target behind
+    fast-moving foreground (0 deg obliquity). 2 levels: tuning-set F1 against 1, 3 and 4 levels in
+    docs/sfm.md ("Pose-aided KLT")."""
+    ground_z_m: float = 0.0
+    """Height of the ground in the world (navigation) frame, metres: the take-off point's. Corners whose
+    ray meets the ground before the fixation plane are foreground and get no second pass."""
 
     # --- SURF (Bay et al. 2008), §II-B-1 ---
     surf_octaves: int = 3
@@ -104,6 +116,9 @@ class SfmConfig:
         _at_least(self, "gftt_min_distance_px", 0.0)
         _at_least(self, "klt_pyramid_levels", 1)
         _at_least(self, "klt_iterations", 1)
+        _at_least(self, "klt_aided_pyramid_levels", 0)
+        if not math.isfinite(self.ground_z_m):
+            raise ConfigError(f"ground_z_m {self.ground_z_m} must be finite")
         _positive(self, "klt_epsilon_px")
         _positive(self, "klt_max_forward_backward_px")
         _at_least(self, "surf_octaves", 1)

@@ -6,6 +6,8 @@ wheels exclude it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
@@ -81,47 +83,127 @@ def gftt_klt_correspondences(
 
 
 def gftt_klt_with_stats(
-    image_a: np.ndarray, image_b: np.ndarray, config: SfmConfig
+    image_a: np.ndarray,
+    image_b: np.ndarray,
+    config: SfmConfig,
+    predict: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray] | None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
-    """As gftt_klt_correspondences, plus counters: keypoints, tracked, rejected_forward_backward."""
+    """As gftt_klt_correspondences, plus counters: keypoints, tracked, rejected_forward_backward.
+
+    Args:
+        image_a: first image.
+        image_b: second image, same size.
+        config: GFTT and KLT settings.
+        predict: maps corners of image a to their predicted pixels in image b and a mask of the
+            corners the prediction holds for (``predict_on_fixation_plane`` with the known poses), or
+            to None. Given, the corners the paper's tracker loses and the mask keeps are tracked
+            again by a shallow KLT started at the prediction (``klt_aided_pyramid_levels``), counted
+            in "tracked_aided".
+
+    """
     gray_a = as_gray_u8(image_a, "image_a")
     gray_b = as_gray_u8(image_b, "image_b")
     check_same_size(gray_a, gray_b)
     corners = detect_gftt(gray_a, config)
-    stats = {"keypoints": int(corners.shape[0]), "tracked": 0, "rejected_forward_backward": 0}
+    stats = {
+        "keypoints": int(corners.shape[0]),
+        "tracked": 0,
+        "rejected_forward_backward": 0,
+        "tracked_aided": 0,
+    }
     if corners.shape[0] == 0:
         return _no_pairs() + (stats,)
 
+    # OpenCV's Python binding takes images here, not prebuilt pyramids; it stops adding levels
+    # once a level is smaller than the window, so 13 levels is an upper bound.
+    tracked, fb_ok, pixels_b = _klt_forward_backward(
+        gray_a, gray_b, corners, config.klt_pyramid_levels, config
+    )
+    good = tracked & fb_ok
+    stats["tracked"] = int(np.count_nonzero(good))
+    stats["rejected_forward_backward"] = int(np.count_nonzero(tracked & ~fb_ok))
+
+    prediction = (
+        predict(corners) if predict is not None and config.klt_aided_pyramid_levels else None
+    )
+    if prediction is not None:
+        predicted_b, holds = prediction
+        retry = np.flatnonzero(~good & holds)
+        if len(retry):
+            tracked_r, fb_ok_r, pixels_r = _klt_forward_backward(
+                gray_a,
+                gray_b,
+                corners[retry],
+                config.klt_aided_pyramid_levels,
+                config,
+                guess_b=predicted_b[retry],
+            )
+            found = retry[tracked_r & fb_ok_r]
+            pixels_b[found] = pixels_r[tracked_r & fb_ok_r]
+            good[found] = True
+            stats["tracked_aided"] = int(len(found))
+    return (
+        np.ascontiguousarray(corners[good], np.float32),
+        np.ascontiguousarray(pixels_b[good], np.float32),
+        stats,
+    )
+
+
+def _klt_forward_backward(
+    gray_a: np.ndarray,
+    gray_b: np.ndarray,
+    corners: np.ndarray,
+    levels: int,
+    config: SfmConfig,
+    guess_b: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pyramidal KLT from a to b and back (Kalal et al.'s forward-backward check).
+
+    Returns:
+        (N,) tracked both ways and inside image b, (N,) forward-backward error within the gate, and
+        (N, 2) float32 pixels in image b. With ``guess_b`` both passes start from it (the backward one
+        from the same displacement reversed) instead of from the corner's own position.
+
+    """
     window = (config.klt_window_px, config.klt_window_px)
-    max_level = config.klt_pyramid_levels - 1
     criteria = (
         cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS,
         config.klt_iterations,
         config.klt_epsilon_px,
     )
-    # OpenCV's Python binding takes images here, not prebuilt pyramids; it stops adding levels
-    # once a level is smaller than the window, so 13 levels is an upper bound.
-    p0 = corners.reshape(-1, 1, 2)
+    p0 = corners.reshape(-1, 1, 2).astype(np.float32)
+    flags, start_b, start_a = 0, None, None
+    if guess_b is not None:
+        flags = cv2.OPTFLOW_USE_INITIAL_FLOW
+        start_b = guess_b.reshape(-1, 1, 2).astype(np.float32)
     p1, status_fw, _ = cv2.calcOpticalFlowPyrLK(
-        gray_a, gray_b, p0, None, winSize=window, maxLevel=max_level, criteria=criteria
+        gray_a,
+        gray_b,
+        p0,
+        start_b,
+        winSize=window,
+        maxLevel=levels - 1,
+        criteria=criteria,
+        flags=flags,
     )
+    if guess_b is not None:
+        start_a = (p1 - (start_b - p0)).astype(np.float32)
     p0_back, status_bw, _ = cv2.calcOpticalFlowPyrLK(
-        gray_b, gray_a, p1, None, winSize=window, maxLevel=max_level, criteria=criteria
+        gray_b,
+        gray_a,
+        p1,
+        start_a,
+        winSize=window,
+        maxLevel=levels - 1,
+        criteria=criteria,
+        flags=flags,
     )
     fb_error = np.linalg.norm((p0_back - p0).reshape(-1, 2), axis=1)
-    tracked = (status_fw.ravel() == 1) & (status_bw.ravel() == 1)
     h, w = gray_b.shape
     p1f = p1.reshape(-1, 2)
     inside = (p1f[:, 0] >= 0) & (p1f[:, 0] <= w - 1) & (p1f[:, 1] >= 0) & (p1f[:, 1] <= h - 1)
-    tracked &= inside
-    good = tracked & (fb_error <= config.klt_max_forward_backward_px)
-    stats["tracked"] = int(np.count_nonzero(good))
-    stats["rejected_forward_backward"] = int(np.count_nonzero(tracked & ~good))
-    return (
-        np.ascontiguousarray(corners[good], np.float32),
-        np.ascontiguousarray(p1f[good], np.float32),
-        stats,
-    )
+    tracked = (status_fw.ravel() == 1) & (status_bw.ravel() == 1) & inside
+    return tracked, fb_error <= config.klt_max_forward_backward_px, p1f.copy()
 
 
 def detect_gftt(gray_u8: np.ndarray, config: SfmConfig) -> np.ndarray:

@@ -15,6 +15,7 @@ from atr.sfm.correspondences import (
 )
 from atr.sfm.triangulation import (
     SfmCloud,
+    predict_on_fixation_plane,
     triangulate_known_pose,
     undistort_pixels,
     validate_distortion,
@@ -75,7 +76,14 @@ def reconstruct(
     if config.matcher == "surf":
         pixels_a, pixels_b, stats = surf_with_stats(gray_a, gray_b, config)
     else:
-        pixels_a, pixels_b, stats = gftt_klt_with_stats(gray_a, gray_b, config)
+        pixels_a, pixels_b, stats = gftt_klt_with_stats(
+            gray_a,
+            gray_b,
+            config,
+            predict=lambda corners: predict_on_fixation_plane(
+                corners, K, dist, T_wa, T_wb, config.ground_z_m
+            ),
+        )
     matched = time.perf_counter()
     all_stats: dict[str, float | int] = dict(stats)
     all_stats["time_correspondences_s"] = matched - start

@@ -203,6 +203,78 @@ def relative_camera_pose(T_world_cam_a: np.ndarray, T_world_cam_b: np.ndarray) -
     return np.linalg.inv(T_world_cam_b) @ T_world_cam_a
 
 
+def fixation_depth_m(T_world_cam_a: np.ndarray, T_world_cam_b: np.ndarray) -> float | None:
+    """Depth in camera a of the point where the two optical axes pass closest: what the camera fixates.
+
+    A UAV that orbits its target and keeps it in view turns between frames so that the target stays
+    in place in the image; the axes then cross near the target.
+
+    Args:
+        T_world_cam_a: (4, 4) world-from-camera at the first frame (OpenCV axes, z forward).
+        T_world_cam_b: (4, 4) world-from-camera at the second frame.
+
+    Returns:
+        The depth (m) along camera a's axis, or None when the axes are parallel or pass closest
+        behind either camera.
+
+    """
+    axis_a, axis_b = T_world_cam_a[:3, 2], T_world_cam_b[:3, 2]
+    offset = T_world_cam_a[:3, 3] - T_world_cam_b[:3, 3]
+    cos_ab = float(axis_a @ axis_b)
+    sin2 = 1.0 - cos_ab * cos_ab
+    if sin2 < 1e-12:
+        return None
+    along_a, along_b = float(axis_a @ offset), float(axis_b @ offset)
+    depth = (cos_ab * along_b - along_a) / sin2
+    depth_b = (along_b - cos_ab * along_a) / sin2
+    return depth if depth > 0.0 and depth_b > 0.0 else None
+
+
+def predict_on_fixation_plane(
+    pixels_a: np.ndarray,
+    K: np.ndarray,
+    dist_coeffs: np.ndarray | None,
+    T_world_cam_a: np.ndarray,
+    T_world_cam_b: np.ndarray,
+    ground_z_m: float,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Where pixels of image a fall in image b if their points lie on the fixation plane.
+
+    The fixation plane faces camera a at ``fixation_depth_m``. A pixel whose ray meets the ground
+    (z = ``ground_z_m``) before that plane sees the foreground, not it.
+
+    Args:
+        pixels_a: (N, 2) pixels in image a, as they came off the lens.
+        K: (3, 3) camera matrix.
+        dist_coeffs: the lens's distortion coefficients, or None for a pinhole.
+        T_world_cam_a: (4, 4) world-from-camera at image a.
+        T_world_cam_b: (4, 4) world-from-camera at image b.
+        ground_z_m: height of the ground in the world frame, metres.
+
+    Returns:
+        (N, 2) float32 predicted pixels in image b (through the same lens) and an (N,) bool mask of the
+        pixels whose ray reaches the fixation plane above the ground; None when the optical axes do
+        not converge in front of camera a (no fixation plane).
+
+    """
+    depth_m = fixation_depth_m(T_world_cam_a, T_world_cam_b)
+    if depth_m is None or len(pixels_a) == 0:
+        return None
+    dist = np.zeros(4) if dist_coeffs is None else dist_coeffs
+    normalised = cv2.undistortPoints(np.asarray(pixels_a, np.float64).reshape(-1, 1, 2), K, dist)
+    rays_cam = np.c_[normalised.reshape(-1, 2), np.ones(len(pixels_a))]  # camera z = 1
+    rays_world = rays_cam @ T_world_cam_a[:3, :3].T
+    centre_a = T_world_cam_a[:3, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        depth_to_ground = (ground_z_m - centre_a[2]) / rays_world[:, 2]
+    reaches_plane = ~((rays_world[:, 2] < 0.0) & (depth_to_ground < depth_m))
+    points_world = centre_a + rays_world * depth_m
+    T_cam_b_world = np.linalg.inv(T_world_cam_b)
+    rvec, _ = cv2.Rodrigues(T_cam_b_world[:3, :3])
+    predicted, _ = cv2.projectPoints(points_world, rvec, T_cam_b_world[:3, 3], K, dist)
+    return predicted.reshape(-1, 2).astype(np.float32), reaches_plane
+
+
 def triangulate_known_pose(
     pixels_a: np.ndarray,
     pixels_b: np.ndarray,

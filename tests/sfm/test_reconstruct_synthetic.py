@@ -57,7 +57,8 @@ def test_reconstructed_points_lie_on_the_plane(pair, plane_scene, matcher: str) 
     # The predicted sigma is honest: errors beyond 4 sigma are rare.
     assert np.mean(np.abs(z) > 4 * cloud.sigma_m) < 0.05
     assert cloud.stats["triangulated"] == len(cloud)
-    assert cloud.stats["keypoints"] >= cloud.stats["tracked"] >= len(cloud)
+    tracked = cloud.stats["tracked"] + cloud.stats.get("tracked_aided", 0)
+    assert cloud.stats["keypoints"] >= tracked >= len(cloud)
 
 
 # A wide-angle lens's barrel distortion: 37 px at the image corners of the 640x480 plane scene.

@@ -63,3 +63,36 @@ def test_points_lie_on_the_true_surface(flight, matcher: str) -> None:
     # Points are in front of the camera and at about the scenario's range.
     ranges = np.linalg.norm(cloud.points_world_m - frame_a.T_world_cam[:3, 3], axis=1)
     assert 0.3 * range_m < np.median(ranges) < 3.0 * range_m
+
+
+def test_pose_aided_pass_recovers_a_far_target_behind_fast_foreground() -> None:
+    """100 m at 0 deg obliquity, 4 m above the ground: trees and grass in front of the camera move
+    hundreds of pixels between the frames, and the deep pyramid's coarse levels lose the target with
+    them (docs/sfm.md). The pose-aided pass must bring points on the target back, on its surface."""
+    scenario = sim_scenarios.scenario(2, 1)
+    world = sim_world.build_world(scenario, 0)
+    frame_a, frame_b = sim_flight.simulate_flight(scenario, seed=0, frames=2, world=world)
+    target_xy = world.T_world_target[:2, 3]
+
+    def cloud_and_target(config: SfmConfig) -> tuple[np.ndarray, np.ndarray]:
+        cloud = reconstruct(
+            frame_a.image,
+            frame_b.image,
+            frame_a.K,
+            frame_a.T_world_cam,
+            frame_b.T_world_cam,
+            config,
+        )
+        p = cloud.points_world_m
+        near = (np.linalg.norm(p[:, :2] - target_xy, axis=1) < 5.0) & (p[:, 2] > 0.3)
+        return p, p[near]
+
+    _, paper_on_target = cloud_and_target(SfmConfig(klt_aided_pyramid_levels=0))
+    assert len(paper_on_target) < 10
+    aided, aided_on_target = cloud_and_target(SfmConfig())
+    assert len(aided_on_target) >= 25
+    assert np.median(surface_distance(world, aided_on_target)) < 0.3
+    # Foreground corners get no second pass: started at the fixation plane, a shallow tracker would
+    # "track" them to wrong places along their epipolar lines. With them, about 40 % of this cloud
+    # lies within 1 m of the true surface; without them, about 65 %.
+    assert np.mean(surface_distance(world, aided) < 1.0) > 0.55

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
 from atr.errors import ConfigError, InputError
 from atr.sfm import SfmConfig, relative_camera_pose, triangulate_known_pose
+from atr.sfm.triangulation import fixation_depth_m, predict_on_fixation_plane
 
 K = np.array([[800.0, 0.0, 640.0], [0.0, 800.0, 480.0], [0.0, 0.0, 1.0]])
 
@@ -156,8 +158,63 @@ def test_bad_intrinsics_and_pixels_raise(cams) -> None:
         {"pixel_sigma_px": -1.0},
         {"min_parallax_deg": 95.0},
         {"pair_gap_frames": 0},
+        {"klt_aided_pyramid_levels": -1},
+        {"ground_z_m": float("nan")},
     ],
 )
 def test_config_refuses_bad_values(kwargs: dict) -> None:
     with pytest.raises(ConfigError, match=next(iter(kwargs))):
         SfmConfig(**kwargs)
+
+
+def look_at(centre: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """World-from-camera pose of a level camera at centre looking at target (OpenCV axes)."""
+    z = (target - centre) / np.linalg.norm(target - centre)
+    x = np.cross(z, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x)
+    T = np.eye(4)
+    T[:3, :3] = np.c_[x, np.cross(z, x), z]
+    T[:3, 3] = centre
+    return T
+
+
+def test_orbiting_cameras_fixate_their_centre() -> None:
+    target = np.array([3.0, -2.0, 1.0])
+    T_a = look_at(target + [100.0, 0.0, 4.0], target)
+    T_b = look_at(target + [100.0 * np.cos(0.08), 100.0 * np.sin(0.08), 4.0], target)
+    depth = fixation_depth_m(T_a, T_b)
+    assert depth == pytest.approx(np.hypot(100.0, 4.0), rel=1e-9)
+    # parallel axes fixate nothing, nor axes that pass closest behind a camera
+    T_shifted = T_a.copy()
+    T_shifted[:3, 3] += [0.0, 7.5, 0.0]
+    assert fixation_depth_m(T_a, T_shifted) is None
+    T_away = look_at(target + [100.0, 7.5, 4.0], target + [200.0, 15.0, 4.0])
+    assert fixation_depth_m(T_a, T_away) is None
+
+
+@pytest.mark.parametrize("dist", [None, np.array([-0.2, 0.05, 0.001, -0.001, 0.0])])
+def test_points_on_the_fixation_plane_are_predicted_exactly(dist) -> None:
+    target = np.array([0.0, 0.0, 1.0])
+    T_a = look_at(np.array([50.0, 0.0, 4.0]), target)
+    T_b = look_at(np.array([50.0 * np.cos(0.1), 50.0 * np.sin(0.1), 4.5]), target)
+    depth = fixation_depth_m(T_a, T_b)
+    # points on the plane facing camera a at the fixation depth, seen through the lens
+    rng = np.random.default_rng(0)
+    cam = np.c_[rng.uniform(-8.0, 8.0, (40, 2)), np.full(40, depth)]
+    world = cam @ T_a[:3, :3].T + T_a[:3, 3]
+    lens = np.zeros(4) if dist is None else dist
+
+    def through_lens(T_world_cam: np.ndarray) -> np.ndarray:
+        T_cam_world = np.linalg.inv(T_world_cam)
+        rvec, _ = cv2.Rodrigues(T_cam_world[:3, :3])
+        px, _ = cv2.projectPoints(world, rvec, T_cam_world[:3, 3], K, lens)
+        return px.reshape(-1, 2)
+
+    predicted, reaches = predict_on_fixation_plane(through_lens(T_a), K, dist, T_a, T_b, -10.0)
+    np.testing.assert_allclose(predicted, through_lens(T_b), atol=1e-3)
+    assert reaches.all()
+    # raise the ground above the plane's lower part: pixels looking down at it now see foreground
+    _, reaches = predict_on_fixation_plane(through_lens(T_a), K, dist, T_a, T_b, 0.5)
+    below = world[:, 2] < 0.5
+    assert below.any() and not below.all()
+    np.testing.assert_array_equal(reaches, ~below)
