@@ -35,6 +35,13 @@ def surface_distance(world, points_world_m: np.ndarray) -> np.ndarray:
     return scene.compute_distance(o3d.core.Tensor(points_world_m.astype(np.float32))).numpy()
 
 
+def reconstruct_pair(frame_a, frame_b, config: SfmConfig):
+    """The SfM cloud of two simulated frames with their true camera poses."""
+    return reconstruct(
+        frame_a.image, frame_b.image, frame_a.K, frame_a.T_world_cam, frame_b.T_world_cam, config
+    )
+
+
 @pytest.fixture(scope="module", params=sorted(CASES))
 def flight(request):
     number, run, bound = CASES[request.param]
@@ -48,14 +55,7 @@ def flight(request):
 @pytest.mark.parametrize("matcher", ["gftt", "surf"])
 def test_points_lie_on_the_true_surface(flight, matcher: str) -> None:
     range_m, world, frame_a, frame_b, bound = flight
-    cloud = reconstruct(
-        frame_a.image,
-        frame_b.image,
-        frame_a.K,
-        frame_a.T_world_cam,
-        frame_b.T_world_cam,
-        SfmConfig(matcher=matcher),
-    )
+    cloud = reconstruct_pair(frame_a, frame_b, SfmConfig(matcher=matcher))
     assert cloud.reason == ""
     assert len(cloud) >= (1000 if matcher == "gftt" else 20), cloud.stats
     distance = surface_distance(world, cloud.points_world_m)
@@ -75,15 +75,7 @@ def test_pose_aided_pass_recovers_a_far_target_behind_fast_foreground() -> None:
     target_xy = world.T_world_target[:2, 3]
 
     def cloud_and_target(config: SfmConfig) -> tuple[np.ndarray, np.ndarray]:
-        cloud = reconstruct(
-            frame_a.image,
-            frame_b.image,
-            frame_a.K,
-            frame_a.T_world_cam,
-            frame_b.T_world_cam,
-            config,
-        )
-        p = cloud.points_world_m
+        p = reconstruct_pair(frame_a, frame_b, config).points_world_m
         near = (np.linalg.norm(p[:, :2] - target_xy, axis=1) < 5.0) & (p[:, 2] > 0.3)
         return p, p[near]
 
