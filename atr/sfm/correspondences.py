@@ -96,9 +96,9 @@ def gftt_klt_with_stats(
         config: GFTT and KLT settings.
         predict: maps corners of image a to their predicted pixels in image b and a mask of the
             corners the prediction holds for (``predict_on_fixation_plane`` with the known poses), or
-            to None. Given, the corners the paper's tracker loses and the mask keeps are tracked
-            again by a shallow KLT started at the prediction (``klt_aided_pyramid_levels``), counted
-            in "tracked_aided".
+            to None. Given, it is called with the corners the paper's tracker loses, and those the
+            mask keeps are tracked again by a shallow KLT started at the prediction
+            (``klt_aided_pyramid_levels``), counted in "tracked_aided".
 
     """
     gray_a = as_gray_u8(image_a, "image_a")
@@ -123,12 +123,13 @@ def gftt_klt_with_stats(
     stats["tracked"] = int(np.count_nonzero(good))
     stats["rejected_forward_backward"] = int(np.count_nonzero(tracked & ~fb_ok))
 
-    prediction = (
-        predict(corners) if predict is not None and config.klt_aided_pyramid_levels else None
-    )
+    lost = np.flatnonzero(~good)
+    prediction = None
+    if predict is not None and config.klt_aided_pyramid_levels and len(lost):
+        prediction = predict(corners[lost])
     if prediction is not None:
         predicted_b, holds = prediction
-        retry = np.flatnonzero(~good & holds)
+        retry = lost[holds]
         if len(retry):
             tracked_r, fb_ok_r, pixels_r = _klt_forward_backward(
                 gray_a,
@@ -136,7 +137,7 @@ def gftt_klt_with_stats(
                 corners[retry],
                 config.klt_aided_pyramid_levels,
                 config,
-                guess_b=predicted_b[retry],
+                guess_b=predicted_b[holds],
             )
             found = retry[tracked_r & fb_ok_r]
             pixels_b[found] = pixels_r[tracked_r & fb_ok_r]
