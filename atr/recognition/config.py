@@ -46,7 +46,9 @@ class RecognitionConfig:
             scene and model distances differ by less than this (PCL GeometricConsistencyGrouping gc_size).
             Two voxels' worth covers the subsampling jitter of both clouds.
         min_group_size: smallest consistent group given to RANSAC (PCL tutorial cg_thresh = 5).
-        max_groups: at most this many groups (largest first) become RANSAC hypotheses.
+        max_groups: at most this many groups (largest first) become RANSAC hypotheses. 20: more than 10
+            let T-72 fits on roofs through until the terrain rule below removed them; with it 20 scores
+            higher with six of the seven descriptors on both tuning sets (docs/recognition.md, "Roofs").
         k_ransac_inlier: RANSAC inlier distance / resolution (one voxel of jitter on each side).
         k_icp_gate: ICP maximum correspondence distance / resolution (Open3D's registration example
             uses 0.4-1.5 x voxel; 2 lets ICP pull in a hypothesis that RANSAC placed a voxel off).
@@ -93,6 +95,14 @@ class RecognitionConfig:
             for ground vehicles instead of pairwise consistency; 10 deg moves a point 3.5 m from the
             centre by 0.6 m, about one accumulator cell.
         k_hough_cell: position cell of the Hough accumulator / resolution.
+        k_terrain_window: half-size of the window around a hypothesis in which the terrain under it is
+            estimated / resolution (18 m: wider than most roofs, so the streets and yards around a
+            building set it).
+        k_terrain_step: a ground vehicle's base may lie at most this / resolution above that terrain
+            (1.5 m). A hypothesis higher up stands on a roof or a wall top: impossible for a ground
+            vehicle. One-storey roofs are >= 3 m up. On a slope the window's 20th percentile lies
+            downhill of the centre, by ~0.6 x the half-window x the gradient, so slopes up to ~14 %
+            pass (docs/recognition.md, "Roofs").
         k_height_tol: a correspondence is kept only if the scene vertex's height above the ground and the
             model vertex's height differ by less than this / resolution (SfM depth noise ~ 0.1-0.3 m).
         view_yaw_margin_deg: with per-view templates and a known camera position, a view votes only for
@@ -124,7 +134,7 @@ class RecognitionConfig:
     knn_across_views: bool = False
     k_consensus: float = 2.0
     min_group_size: int = 5
-    max_groups: int = 10
+    max_groups: int = 20
     k_ransac_inlier: float = 1.0
     k_icp_gate: float = 2.0
     icp_iterations: int = 30
@@ -146,6 +156,8 @@ class RecognitionConfig:
     k_keypoint_min_height: float = 1.5
     hough_yaw_bin_deg: float = 10.0
     k_hough_cell: float = 3.0
+    k_terrain_window: float = 60.0
+    k_terrain_step: float = 5.0
     k_height_tol: float = 1.5
     view_yaw_margin_deg: float = 15.0
     template_samples_per_m2: float = 400.0
@@ -237,6 +249,16 @@ class RecognitionConfig:
     def ground_cut_m(self) -> float:
         """Height below which scene and template vertices count as ground, metres."""
         return self.k_ground_cut * self.resolution_m
+
+    @property
+    def terrain_window_m(self) -> float:
+        """Half-size of the terrain window around a hypothesis, metres."""
+        return self.k_terrain_window * self.resolution_m
+
+    @property
+    def terrain_step_m(self) -> float:
+        """Highest a ground vehicle's base may stand above the terrain around it, metres."""
+        return self.k_terrain_step * self.resolution_m
 
     @property
     def nms_m(self) -> float:

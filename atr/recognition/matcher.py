@@ -27,7 +27,9 @@ from atr.recognition.steps import (
     group_upright_hough,
     height_above_ground,
     knndr_from_distances,
+    lowest_per_cell,
     ransac_per_group,
+    terrain_height_at,
     uniform_subsample,
     verify_with_icp,
 )
@@ -207,6 +209,7 @@ def recognize(
         return empty("no templates given")
 
     band = None
+    terrain = None
     if config.ground_vehicles and all(tpl.params.get("on_ground") for tpl in templates):
         # Ground vehicles: drop the ground from the description surface, keep keypoints in the band
         # of heights a target occupies (docs/recognition.md, "Ground").
@@ -216,6 +219,7 @@ def recognize(
             config.k_ground_window * config.resolution_m,
             config.ground_percentile,
         )
+        terrain = lowest_per_cell(surface, config.k_ground_cell * config.resolution_m)
         top = max(float(np.asarray(tpl.points_m)[:, 2].max()) for tpl in templates)
         above = height >= config.ground_cut_m
         surface, height = surface[above], height[above]
@@ -370,6 +374,18 @@ def recognize(
                 on_ground = (
                     abs(v.T_scene_model[2, 3] - z_ground)
                     <= config.k_height_tol * config.resolution_m
+                )
+            if on_ground and terrain is not None:
+                # ... and that ground must be the terrain, not a roof (docs/recognition.md, "Roofs")
+                z_terrain = terrain_height_at(
+                    *terrain,
+                    v.T_scene_model[:2, 3],
+                    config.terrain_window_m,
+                    config.ground_percentile,
+                )[0]
+                on_ground = bool(
+                    np.isnan(z_terrain)
+                    or v.T_scene_model[2, 3] - z_terrain <= config.terrain_step_m
                 )
             hyp_log.append(
                 (

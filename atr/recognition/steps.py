@@ -112,17 +112,73 @@ def height_above_ground(
     pts = np.asarray(points, np.float64)
     if len(pts) == 0:
         return np.zeros(0)
-    ij = np.floor(pts[:, :2] / cell_m).astype(np.int64)
-    ij -= ij.min(axis=0)
-    shape = tuple(int(x) for x in ij.max(axis=0) + 1)
-    grid = np.full(shape, np.inf)
-    np.minimum.at(grid, (ij[:, 0], ij[:, 1]), pts[:, 2])
+    ij, grid, _ = _lowest_per_cell(pts, cell_m)
     w = max(1, int(round(window_m / cell_m)))
     size = 2 * w + 1
     ground = ndimage.percentile_filter(grid, percentile, size=size, mode="constant", cval=np.inf)
     fallback = ndimage.minimum_filter(grid, size=size, mode="constant", cval=np.inf)
     ground = np.where(np.isfinite(ground), ground, fallback)
     return pts[:, 2] - ground[ij[:, 0], ij[:, 1]]
+
+
+def lowest_per_cell(points: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """The lowest point of each occupied cell of a horizontal grid: the terrain samples of a scene.
+
+    Args:
+        points: (N, 3) float, metres, finite, N >= 1.
+        cell_m: grid cell edge, metres (> 0).
+
+    Returns:
+        (M, 2) cell centres, metres, and (M,) the lowest z in each, metres.
+
+    """
+    ij, grid, origin = _lowest_per_cell(np.asarray(points, np.float64), cell_m)
+    filled = np.argwhere(np.isfinite(grid))
+    return (filled + origin + 0.5) * cell_m, grid[filled[:, 0], filled[:, 1]]
+
+
+def terrain_height_at(
+    cell_xy: np.ndarray,
+    cell_lowest_z: np.ndarray,
+    query_xy: np.ndarray,
+    window_m: float,
+    percentile: float,
+) -> np.ndarray:
+    """Height of the terrain at each query position, metres: ``height_above_ground``'s ground estimate
+    (a low percentile of the cells' lowest points) over a window wider than a building, so that the
+    streets and yards around a building set it and its roof does not.
+
+    Args:
+        cell_xy: (M, 2) cell centres from ``lowest_per_cell``, metres.
+        cell_lowest_z: (M,) their lowest z, metres.
+        query_xy: (Q, 2) positions, metres.
+        window_m: half-size of the square window around a query, metres.
+        percentile: percentile of the cell values taken as the terrain, in [0, 100].
+
+    Returns:
+        (Q,) float64 heights, metres; NaN where the window holds no cell.
+
+    """
+    query = np.atleast_2d(np.asarray(query_xy, np.float64))
+    out = np.full(len(query), np.nan)
+    for q, xy in enumerate(query):
+        inside = np.all(np.abs(cell_xy - xy) <= window_m, axis=1)
+        if inside.any():
+            out[q] = np.percentile(cell_lowest_z[inside], percentile)
+    return out
+
+
+def _lowest_per_cell(
+    points: np.ndarray, cell_m: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each point's (i, j) cell, the grid of each cell's lowest z (inf where empty), the grid's origin cell."""
+    ij = np.floor(points[:, :2] / cell_m).astype(np.int64)
+    origin = ij.min(axis=0)
+    ij -= origin
+    shape = tuple(int(x) for x in ij.max(axis=0) + 1)
+    grid = np.full(shape, np.inf)
+    np.minimum.at(grid, (ij[:, 0], ij[:, 1]), points[:, 2])
+    return ij, grid, origin
 
 
 @dataclass(frozen=True)

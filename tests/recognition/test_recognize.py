@@ -178,3 +178,41 @@ def test_two_million_points_bounded(small_template):
     # A flat plane may lose every point to ground removal before keypoints are counted.
     assert res.stats.get("keypoints", 0) <= cfg.max_scene_keypoints
     assert all(d.target == "car" for d in res.detections)
+
+
+def test_a_tank_on_a_roof_is_not_a_ground_vehicle(vehicles, templates):
+    """A T-72 fitted on a 5 m high roof stands on the roof's 'ground' but 5 m above the terrain."""
+    import dataclasses
+
+    import open3d as o3d
+
+    cfg, tpls = templates
+    roof_z = 5.0
+    building = o3d.geometry.TriangleMesh.create_box(16.0, 16.0, roof_z)
+    building.translate((-8.0, -10.0, 0.0))  # centred under the tank at (0, -2)
+    T = syn.pose(0.0, -2.0, 0.7)
+    T[2, 3] = roof_z
+    t72 = vehicles["t72"]
+    scene = syn.aerial_scene(
+        [
+            ((t72.vertices, t72.triangles), T),
+            ((np.asarray(building.vertices), np.asarray(building.triangles)), np.eye(4)),
+        ],
+        seed=0,
+        samples_per_m2=30,
+        extent_m=25,
+        n_clutter=0,
+        azimuth_deg=20,
+    )
+
+    def t72_on_roof(config):
+        res = recognize(scene, tpls, config, seed=0, viewpoint_m=VIEWPOINT)
+        return [
+            d
+            for d in res.detections
+            if d.target == "t72" and np.linalg.norm(d.T_world_target[:3, 3] - T[:3, 3]) < 2.0
+        ]
+
+    # the scene is recognisable: without the terrain rule the tank is found on the roof
+    assert t72_on_roof(dataclasses.replace(cfg, k_terrain_step=1000.0))
+    assert t72_on_roof(cfg) == []

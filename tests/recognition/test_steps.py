@@ -17,9 +17,11 @@ from atr.recognition import (
     group_upright_hough,
     height_above_ground,
     knndr_from_distances,
+    lowest_per_cell,
     match_knndr,
     ransac_per_group,
     rigid_transform,
+    terrain_height_at,
     uniform_subsample,
     upright_rigid_transform,
     verify_with_icp,
@@ -272,6 +274,25 @@ def test_height_above_ground_on_terrain_with_vehicle_and_outliers():
     # the lowest point of a cell lies ~1-2 sigma under the mean ground: well inside the 0.3 m ground cut
     assert np.median(np.abs(h[: len(pts)])) < 0.15
     np.testing.assert_allclose(np.median(h[len(pts) : len(pts) + len(roof)]), 2.2, atol=0.15)
+
+
+def test_terrain_under_a_roof_is_the_ground_around_the_building():
+    rng = np.random.default_rng(13)
+    xy = rng.uniform(-30, 30, (20000, 2))
+    ground = 0.05 * xy[:, 0]  # a 5 % slope
+    on_roof = np.all(np.abs(xy) < 8.0, axis=1)  # a 16 x 16 m building, 6 m high
+    pts = np.c_[xy, np.where(on_roof, ground + 6.0, ground)]
+    cells = lowest_per_cell(pts, 1.5)
+    query = np.array([[0.0, 0.0], [20.0, 0.0], [500.0, 500.0]])
+    local = terrain_height_at(*cells, query, 4.5, 20.0)
+    wide = terrain_height_at(*cells, query, 18.0, 20.0)
+    assert local[0] > 5.0  # a window smaller than the roof sees only the roof
+    # the wide window sees the terrain; on the slope its 20th percentile lies downhill, by 0.6 x the
+    # half-window (a square window) plus up to a cell
+    downhill_m = (0.6 * 18.0 + 1.5) * 0.05
+    assert -downhill_m < wide[0] < 0.2
+    assert -downhill_m < wide[1] - 1.0 < 0.2
+    assert np.isnan(wide[2])  # no cell in the window
 
 
 def test_knndr_from_distances_equals_match_knndr():
