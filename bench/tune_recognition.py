@@ -16,6 +16,9 @@ Pairs are spread along each run so that the tuning set sees the target from all 
 ``--keep-images`` the image pairs are stored too, and ``resfm`` reconstructs them again with other SfM
 settings into another folder (comparing SfM settings by their effect on recognition, without rendering).
 
+A second, larger set for the weak cells (50 and 100 m, 240 scenes; docs/recognition.md, "Roofs"):
+``make --scenario 1 2 --pairs 6 --lidar-every 0 --keep-images --cache DIR``.
+
 ``eval`` builds the templates of the T-72 and its confusers (IFV, 6x6 truck) as the template store does,
 runs ``atr.recognition.recognize`` on every cached cloud and scores it with ``atr.evaluation.metrics``
 (§III-C: TP within 2 m of the T-72; FP a T-72 hypothesis without target or > 2 m off; FN none).
