@@ -1,8 +1,10 @@
 """End-to-end tests of recognize(): PCL's real Kinect case, simulated vehicles, bad inputs, determinism."""
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
+import open3d as o3d
 import pytest
 
 from atr.errors import InputError
@@ -182,10 +184,6 @@ def test_two_million_points_bounded(small_template):
 
 def test_a_tank_on_a_roof_is_not_a_ground_vehicle(vehicles, templates):
     """A T-72 fitted on a 5 m high roof stands on the roof's 'ground' but 5 m above the terrain."""
-    import dataclasses
-
-    import open3d as o3d
-
     cfg, tpls = templates
     roof_z = 5.0
     building = o3d.geometry.TriangleMesh.create_box(16.0, 16.0, roof_z)
