@@ -175,6 +175,10 @@ class Node:
         except queue.Full:
             self.counters.dropped += 1
 
+    def pending(self) -> int:
+        """Inputs received and not yet handed out by ``events()``."""
+        return self._queue.qsize()
+
     def events(self, timeout_s: float | None = None) -> Iterator[Message]:
         """Decoded inputs in arrival order until stopped (or `timeout_s` without input, if given).
 

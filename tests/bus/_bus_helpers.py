@@ -7,7 +7,9 @@ python _bus_helpers.py publish --frames N [--uav uav1] [--image-shape 48 64]
 python _bus_helpers.py pipeline --seed S [--error-every K]
     a fake pipeline: answers every camera image with one Detections of the same stamp_ns after a
     random delay (or, every K-th frame, with an ErrorReport whose input_stamp_ns is the
-    image's), until SIGTERM.
+    image's), until SIGTERM. Before each answer it checks that the next image has not arrived
+    yet, says so on stderr if it has, and then exits with code 3 (what a lock-step replay must
+    never cause).
 """
 
 from __future__ import annotations
@@ -112,11 +114,19 @@ def publish(args: argparse.Namespace) -> int:
 
 def pipeline(args: argparse.Namespace) -> int:
     rng = np.random.default_rng(args.seed)
+    early = 0
     with Node("fake_pipeline", "uav1", inputs=["atr/*/camera/image"]) as node:
         node.ready()
         for n, message in enumerate(node.events()):
             with node.handling(message):
                 time.sleep(float(rng.uniform(0.0, args.max_delay)))
+                if node.pending():
+                    early += 1
+                    print(
+                        f"next image arrived before the answer to frame {message.data['frame_seq']}",
+                        file=sys.stderr,
+                        flush=True,
+                    )
                 uav = message.key.split("/")[1]
                 if args.error_every and n % args.error_every == args.error_every - 1:
                     raise InputError(f"frame {message.data['frame_seq']} refused on purpose")
@@ -130,7 +140,7 @@ def pipeline(args: argparse.Namespace) -> int:
                         "source": "fake",
                     },
                 )
-    return 0
+    return 3 if early else 0
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -126,9 +126,14 @@ def test_lock_step_releases_a_frame_only_after_the_answer_to_the_last(
         )
     finally:
         pipeline.send_signal(signal.SIGTERM)
-        finish(pipeline)
+        pipeline_code, pipeline_err = finish(pipeline)
         watcher.close()
 
+    # The pipeline itself sees whether a frame came before its answer to the last one. (The order of
+    # messages from different sources in a recording is not evidence: they reach the recorder over
+    # different links, and Zenoh orders messages per link only.)
+    assert "before the answer" not in pipeline_err, pipeline_err
+    assert pipeline_code == 0, pipeline_err
     records = _messages(answered)
     images = [(i, m) for i, (t, m) in enumerate(records) if t == "atr/uav1/camera/image"]
     assert len(images) == 6
@@ -138,16 +143,9 @@ def test_lock_step_releases_a_frame_only_after_the_answer_to_the_last(
             answers.setdefault(codec.unpack(m.data)["stamp_ns"], []).append(i)
         elif topic == "atr/uav1/fake_pipeline/errors":
             answers.setdefault(codec.unpack(m.data)["input_stamp_ns"], []).append(i)
-    for k, (index, image) in enumerate(images):
+    for k, (_, image) in enumerate(images):
         stamp = codec.unpack(image.data)["stamp_ns"]
         assert len(answers.get(stamp, [])) == 1, f"frame {k}: one answer expected"
-        answer_index = answers[stamp][0]
-        assert answer_index > index
-        # nothing of the replay after frame k's image is recorded before frame k's answer
-        later_inputs = [i for i, (t, _) in enumerate(records) if is_input_topic(t) and i > index]
-        assert all(i > answer_index for i in later_inputs), (
-            f"frame {k} released input before its answer"
-        )
     # every third frame was answered with an ErrorReport instead of Detections
     errors = [t for t, _ in records if t == "atr/uav1/fake_pipeline/errors"]
     assert len(errors) == 2
