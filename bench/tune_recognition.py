@@ -239,7 +239,7 @@ def parse_sets(items: list[str]) -> dict:
 
 def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False) -> dict:
     from atr.evaluation.metrics import count, score_scene
-    from atr.recognition import recognize
+    from atr.recognition import lowest_per_cell, recognize, terrain_height_at, uniform_subsample
     from atr.sim.config import SimConfig
 
     present = SimConfig().present_min_visible_fraction
@@ -247,6 +247,9 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
     times: list[float] = []
     stage_sum: dict[str, list[float]] = {}
     errors = []
+    # verbose: each T-72 detection's base height above the terrain as the matcher's roof rule
+    # estimates it (docs/recognition.md, "Roofs"), by outcome
+    above_terrain: dict[bool, list[float]] = {True: [], False: []}
     for sc in scenes:
         res = recognize(
             sc["points"],
@@ -269,17 +272,44 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
         if s.outcome == "tp":
             errors.append(s.translation_error_m)
         if verbose:
-            det = ", ".join(
-                f"{d.target}:{d.score:.0f}/{d.overlap:.2f}@"
-                f"{np.linalg.norm(d.T_world_target[:3, 3] - sc['T_world_target'][:3, 3]):.1f}m"
-                for d in res.detections
-            )
+            surface = sc["points"][uniform_subsample(sc["points"], config.resolution_m)]
+            cells = lowest_per_cell(surface, config.k_ground_cell * config.resolution_m)
+            parts = []
+            for d in res.detections:
+                off_m = float(np.linalg.norm(d.T_world_target[:3, 3] - sc["T_world_target"][:3, 3]))
+                up_m = float(
+                    d.T_world_target[2, 3]
+                    - terrain_height_at(
+                        *cells,
+                        d.T_world_target[:2, 3],
+                        config.terrain_window_m,
+                        config.ground_percentile,
+                    )[0]
+                )
+                if d.target == "t72":
+                    above_terrain[has and off_m < 2.0].append(up_m)
+                parts.append(f"{d.target}:{d.score:.0f}/{d.overlap:.2f}@{off_m:.1f}m^{up_m:+.1f}m")
+            det = ", ".join(parts)
             print(
                 f"  {sc['name']:22} {s.outcome:2} pts {len(sc['points']):6d} kp {res.stats.get('keypoints', 0):5d}"
                 f" vis {sc['visible'][1]:.2f} az {m['azimuth_in_target_deg']:5.0f}"
                 f" {res.stage_times_ms['total']:6.0f} ms  [{det}]",
                 flush=True,
             )
+    if verbose and above_terrain[True]:
+        from atr.recognition import RecognitionConfig
+
+        step_m = RecognitionConfig(
+            resolution_m=config.resolution_m
+        ).terrain_step_m  # the default rule
+        wrong = np.array(above_terrain[False])
+        print(
+            f"  T-72 base above the terrain: {len(above_terrain[True])} TPs "
+            f"{min(above_terrain[True]):+.2f} to {max(above_terrain[True]):+.2f} m; "
+            f"{np.count_nonzero(wrong > step_m)} of {len(wrong)} others above {step_m:.2f} m"
+            + (f" (up to {wrong.max():+.2f} m)" if len(wrong) else ""),
+            flush=True,
+        )
     all_scores = [s for v in per.values() for s in v]
     return {
         "per": {
