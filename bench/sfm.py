@@ -158,7 +158,7 @@ def timing(label, img_a, img_b, K, T_a, T_b, repeats: int) -> None:
 def repeatability_table(img: np.ndarray) -> None:
     """Our SURF vs OpenCV SIFT under known rotations and scalings of one image."""
     h, w = img.shape
-    surf = Surf(SfmConfig(surf_max_keypoints=0))
+    surf = Surf(SfmConfig(surf_max_keypoints=0, surf_blob_threshold=1e-3))  # the paper's threshold
     sift = cv2.SIFT_create()
 
     def run_surf(im):

@@ -40,6 +40,8 @@ class Baseline2dConfig:
         fast_min_contrast: FAST minimum contrast as a fraction of full scale (Table IV #3, #4: 1e-3); OpenCV's
             integer threshold is this x 255, at least 1 grey level.
         max_keypoints: strongest keypoints kept per image (bounds time; FAST at contrast 1e-3 fires on noise).
+        surf_blob_threshold: SURF's Hessian threshold for pair #2 (§II-B-1's 1e-3; the SfM arm's default
+            differs, docs/sfm.md).
         nndr_ratio: nearest neighbour distance ratio threshold (§III-B: 0.8).
         msac_max_distance_px: MSAC inlier distance, pixels (MATLAB estimateGeometricTransform MaxDistance 1.5).
         msac_max_trials: MSAC iterations (MATLAB MaxNumTrials default 1000).
@@ -63,6 +65,7 @@ class Baseline2dConfig:
     gftt_filter_size_px: int = 3
     fast_min_contrast: float = 1e-3
     max_keypoints: int = 4000
+    surf_blob_threshold: float = 1e-3
     nndr_ratio: float = 0.8
     msac_max_distance_px: float = 1.5
     msac_max_trials: int = 1000

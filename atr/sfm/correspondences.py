@@ -254,9 +254,23 @@ def surf_correspondences(
 
 
 def surf_with_stats(
-    image_a: np.ndarray, image_b: np.ndarray, config: SfmConfig
+    image_a: np.ndarray,
+    image_b: np.ndarray,
+    config: SfmConfig,
+    epipolar: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
-    """As surf_correspondences, plus counters: keypoints (image a), keypoints_b, tracked (= matched)."""
+    """As surf_correspondences, plus counters: keypoints (image a), keypoints_b, tracked (= matched).
+
+    Args:
+        image_a: first image.
+        image_b: second image, same size.
+        config: SURF and NNDR settings.
+        epipolar: maps keypoints of a and b to their (Na, Nb) epipolar distances in pixels
+            (``epipolar_distances_px`` with the known poses), or None. Given, and with
+            ``surf_epipolar_guided``, NNDR compares only the keypoints of b within the triangulation's
+            reprojection gate of each epipolar line, and a pair must pass it from both sides.
+
+    """
     gray_a = as_gray_u8(image_a, "image_a")
     gray_b = as_gray_u8(image_b, "image_b")
     check_same_size(gray_a, gray_b)
@@ -266,13 +280,27 @@ def surf_with_stats(
     stats = {"keypoints": int(kp_a.shape[0]), "keypoints_b": int(kp_b.shape[0]), "tracked": 0}
     if kp_a.shape[0] == 0 or kp_b.shape[0] < 2:
         return _no_pairs() + (stats,)
-    index_a, index_b = match_nndr(desc_a, desc_b, config.surf_nndr)
+    if epipolar is not None and config.surf_epipolar_guided:
+        # Only candidates the triangulation could keep compete: a wrong candidate off the line can
+        # no longer make the right one fail the ratio test. With fewer rivals a wrong candidate on
+        # the line passes more easily too, so the test must hold both ways.
+        allowed = epipolar(kp_a[:, :2], kp_b[:, :2]) <= config.max_reprojection_px
+        index_a, index_b = match_nndr(desc_a, desc_b, config.surf_nndr, allowed)
+        back_b, back_a = match_nndr(desc_b, desc_a, config.surf_nndr, allowed.T)
+        n_b = kp_b.shape[0]
+        both = np.isin(index_a * n_b + index_b, back_a * n_b + back_b)
+        index_a, index_b = index_a[both], index_b[both]
+    else:
+        index_a, index_b = match_nndr(desc_a, desc_b, config.surf_nndr)
     stats["tracked"] = int(index_a.shape[0])
     return kp_a[index_a, :2].copy(), kp_b[index_b, :2].copy(), stats
 
 
 def match_nndr(
-    descriptors_a: np.ndarray, descriptors_b: np.ndarray, ratio: float
+    descriptors_a: np.ndarray,
+    descriptors_b: np.ndarray,
+    ratio: float,
+    allowed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Nearest-neighbour distance ratio matching (Mikolajczyk & Schmid 2005), one-to-one.
 
@@ -283,13 +311,18 @@ def match_nndr(
         descriptors_a: (Na, D) float32.
         descriptors_b: (Nb, D) float32, Nb >= 2.
         ratio: NNDR threshold in (0, 1].
+        allowed: (Na, Nb) bool, the pairs that may match; None allows all. A descriptor of a with
+            fewer than two allowed candidates has no ratio and matches nothing.
 
     Returns:
         (M,) int64 indices into a and (M,) int64 indices into b, sorted by index into a.
 
     """
     matcher = cv2.BFMatcher(cv2.NORM_L2)
-    knn = matcher.knnMatch(descriptors_a.astype(np.float32), descriptors_b.astype(np.float32), k=2)
+    mask = None if allowed is None else allowed.astype(np.uint8)
+    knn = matcher.knnMatch(
+        descriptors_a.astype(np.float32), descriptors_b.astype(np.float32), k=2, mask=mask
+    )
     rows = np.array(
         [(m[0].queryIdx, m[0].trainIdx, m[0].distance, m[1].distance) for m in knn if len(m) == 2],
         dtype=np.float64,

@@ -15,6 +15,7 @@ from atr.sfm.correspondences import (
 )
 from atr.sfm.triangulation import (
     SfmCloud,
+    epipolar_distances_px,
     predict_on_fixation_plane,
     triangulate_known_pose,
     undistort_pixels,
@@ -74,7 +75,12 @@ def reconstruct(
 
     start = time.perf_counter()
     if config.matcher == "surf":
-        pixels_a, pixels_b, stats = surf_with_stats(gray_a, gray_b, config)
+        pixels_a, pixels_b, stats = surf_with_stats(
+            gray_a,
+            gray_b,
+            config,
+            epipolar=lambda kp_a, kp_b: epipolar_distances_px(kp_a, kp_b, K, dist, T_wa, T_wb),
+        )
     else:
         pixels_a, pixels_b, stats = gftt_klt_with_stats(
             gray_a,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import cv2
 import numpy as np
 import pytest
@@ -150,3 +152,22 @@ def test_bad_images_raise_input_error(pair, plane_scene) -> None:
         reconstruct(img, img, plane_scene.K, T_a, T_b, SfmConfig(), dist_coeffs=np.zeros(3))
     with pytest.raises(InputError, match="non-finite"):
         reconstruct(img, img, plane_scene.K, T_a, T_b, SfmConfig(), dist_coeffs=BARREL + np.nan)
+
+
+def test_guided_surf_matches_a_pattern_that_repeats_off_the_epipolar_lines(
+    pair, plane_scene
+) -> None:
+    """Rows of texture repeated along the ground's y axis: each blob has a twin in image b that NNDR
+    cannot tell apart, but the twin lies off the epipolar line of the (sideways) camera motion."""
+    T_a, T_b = pair
+    band = plane_scene.texture[:100]
+    scene = dataclasses.replace(plane_scene, texture=np.tile(band, (20, 1)))
+    img_a, img_b = scene.render(T_a), scene.render(T_b)
+    plain = reconstruct(
+        img_a, img_b, scene.K, T_a, T_b, SfmConfig(matcher="surf", surf_epipolar_guided=False)
+    )
+    guided = reconstruct(img_a, img_b, scene.K, T_a, T_b, SfmConfig(matcher="surf"))
+    assert guided.stats["tracked"] > 3 * plain.stats["tracked"], (plain.stats, guided.stats)
+    assert len(guided) > 100
+    assert np.median(np.abs(guided.points_world_m[:, 2])) < 0.15
+    assert np.mean(np.abs(guided.points_world_m[:, 2]) < 1.0) > 0.95

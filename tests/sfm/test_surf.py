@@ -54,7 +54,8 @@ def test_rotation_by_90_degrees_keeps_keypoints_and_descriptors(plane_scene) -> 
     img = plane_scene.texture[:400, :400].copy()
     rotated = cv2.rotate(img, cv2.ROTATE_90_COUNTERCLOCKWISE)
     H = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 399.0], [0.0, 0.0, 1.0]])  # (x, y) -> (y, 399 - x)
-    surf = Surf()
+    # The paper's threshold: the SfM default keeps weaker blobs, which repeat less (docs/sfm.md).
+    surf = Surf(SfmConfig(surf_blob_threshold=1e-3))
     ka, da = surf.detect_and_compute(img.astype(np.float32) / 255.0)
     kb, db = surf.detect_and_compute(rotated.astype(np.float32) / 255.0)
     assert repeatability(ka[:, :2], kb[:, :2], H, (400, 400), (400, 400), 1.5) > 0.8
@@ -93,3 +94,19 @@ def test_flat_image_has_no_keypoints_and_bad_images_raise() -> None:
     bad[3, 3] = np.inf
     with pytest.raises(InputError, match="non-finite"):
         Surf().detect(bad)
+
+
+def test_nndr_compares_only_the_allowed_candidates() -> None:
+    rng = np.random.default_rng(3)
+    desc_b = rng.normal(size=(6, 64)).astype(np.float32)
+    # A repeated pattern: b holds two copies of a's descriptor, each with a little noise.
+    desc_b[1] = desc_b[0] + rng.normal(scale=0.01, size=64)
+    desc_a = desc_b[:1] + rng.normal(scale=0.01, size=(1, 64)).astype(np.float32)
+    assert len(match_nndr(desc_a, desc_b, 0.6)[0]) == 0  # its runner-up is as close
+    allowed = np.ones((1, 6), bool)
+    allowed[0, 1] = False  # the copy lies off the epipolar line
+    ia, ib = match_nndr(desc_a, desc_b, 0.6, allowed)
+    assert ia.tolist() == [0] and ib.tolist() == [0]
+    only_one = np.zeros((1, 6), bool)
+    only_one[0, 0] = True  # a lone candidate has no ratio
+    assert len(match_nndr(desc_a, desc_b, 0.6, only_one)[0]) == 0

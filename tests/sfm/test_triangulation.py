@@ -8,7 +8,11 @@ import pytest
 
 from atr.errors import ConfigError, InputError
 from atr.sfm import SfmConfig, relative_camera_pose, triangulate_known_pose
-from atr.sfm.triangulation import fixation_depth_m, predict_on_fixation_plane
+from atr.sfm.triangulation import (
+    epipolar_distances_px,
+    fixation_depth_m,
+    predict_on_fixation_plane,
+)
 
 K = np.array([[800.0, 0.0, 640.0], [0.0, 800.0, 480.0], [0.0, 0.0, 1.0]])
 
@@ -218,3 +222,35 @@ def test_points_on_the_fixation_plane_are_predicted_exactly(dist) -> None:
     below = world[:, 2] < 0.5
     assert below.any() and not below.all()
     np.testing.assert_array_equal(reaches, ~below)
+
+
+@pytest.mark.parametrize("dist", [None, np.array([-0.2, 0.05, 0.001, -0.001, 0.0])])
+def test_epipolar_distance_is_zero_for_a_true_correspondence_and_grows_off_the_line(dist) -> None:
+    target = np.array([0.0, 0.0, 1.0])
+    T_a = look_at(np.array([50.0, 0.0, 4.0]), target)
+    T_b = look_at(np.array([50.0 * np.cos(0.1), 50.0 * np.sin(0.1), 6.0]), target)
+    rng = np.random.default_rng(1)
+    world = np.c_[rng.uniform(-10.0, 10.0, (30, 2)), rng.uniform(0.0, 3.0, 30)]
+    lens = np.zeros(4) if dist is None else dist
+
+    def through_lens(T_world_cam: np.ndarray) -> np.ndarray:
+        T_cam_world = np.linalg.inv(T_world_cam)
+        rvec, _ = cv2.Rodrigues(T_cam_world[:3, :3])
+        px, _ = cv2.projectPoints(world, rvec, T_cam_world[:3, 3], K, lens)
+        return px.reshape(-1, 2)
+
+    px_a, px_b = through_lens(T_a), through_lens(T_b)
+    distances = epipolar_distances_px(px_a, px_b, K, dist, T_a, T_b)
+    assert distances.shape == (30, 30)
+    np.testing.assert_allclose(np.diag(distances), 0.0, atol=1e-3)
+    # Other points of the same scene lie off each other's lines (depths differ).
+    assert np.median(distances[~np.eye(30, dtype=bool)]) > 5.0
+    if dist is None:
+        # A pixel moved 3 px along the normal of its line (the line as OpenCV finds it from the
+        # exact correspondences alone, an outside reference) is 3 px from our line.
+        F, _ = cv2.findFundamentalMat(px_a, px_b, cv2.FM_8POINT)
+        line = cv2.computeCorrespondEpilines(px_a[:1].reshape(-1, 1, 2), 1, F).reshape(3)
+        moved = px_b[:1] + 3.0 * line[:2] / np.hypot(*line[:2])
+        assert epipolar_distances_px(px_a[:1], moved, K, None, T_a, T_b)[0, 0] == pytest.approx(
+            3.0, abs=1e-3
+        )
