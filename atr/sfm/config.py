@@ -66,7 +66,7 @@ class SfmConfig:
     """Hessian determinant threshold on an image scaled to [0, 1], box responses normalised by the
     filter area. §II-B-1 gives 1e-3, which leaves ~500 points per cloud in the paper's imagery; our
     renderer's shaded surfaces have fewer strong blobs, and 1e-3 leaves a median of 87 (tuning set, F1
-    0.07). 2e-4 gives ~1,000 points and the best tuning F1 (docs/sfm.md, "SURF for recognition")."""
+    0.07). 2e-4 gives ~800 and, with surf_epipolar_guided, F1 0.49 (docs/sfm.md, "SURF for recognition")."""
     surf_initial_step_px: int = 2
     """Sampling step of the first octave (px), doubled per octave. Bay et al. 2008 §4.2 use 2."""
     k_surf_duplicate_radius: float = 1.0
@@ -84,8 +84,8 @@ class SfmConfig:
     """Nearest-neighbour distance ratio threshold (§II-B-1: 0.6, empirically set by the authors)."""
     surf_epipolar_guided: bool = True
     """NNDR compares each keypoint of a only with the keypoints of b within max_reprojection_px of its
-    epipolar line, which the known pose gives (ours; the paper compares with all of b, False). Tuning
-    F1 0.27 -> 0.46 with SHOT at 2e-4 (docs/sfm.md, "SURF for recognition")."""
+    epipolar line, which the known pose gives, and the reverse (ours; the paper compares with all of b:
+    False). Tuning F1 at 2e-4, best descriptor: 0.35 -> 0.49 (docs/sfm.md, "SURF for recognition")."""
 
     # --- Triangulation with the known (IMU) relative pose ---
     pixel_sigma_px: float = 0.5
