@@ -182,6 +182,17 @@ def look_at(centre: np.ndarray, target: np.ndarray) -> np.ndarray:
     return T
 
 
+def through_lens(
+    points_world: np.ndarray, T_world_cam: np.ndarray, dist: np.ndarray | None
+) -> np.ndarray:
+    """Pixels of world points seen by a camera with K and the lens `dist` (None: a pinhole)."""
+    T_cam_world = np.linalg.inv(T_world_cam)
+    rvec, _ = cv2.Rodrigues(T_cam_world[:3, :3])
+    lens = np.zeros(4) if dist is None else dist
+    px, _ = cv2.projectPoints(points_world, rvec, T_cam_world[:3, 3], K, lens)
+    return px.reshape(-1, 2)
+
+
 def test_orbiting_cameras_fixate_their_centre() -> None:
     target = np.array([3.0, -2.0, 1.0])
     T_a = look_at(target + [100.0, 0.0, 4.0], target)
@@ -206,19 +217,13 @@ def test_points_on_the_fixation_plane_are_predicted_exactly(dist) -> None:
     rng = np.random.default_rng(0)
     cam = np.c_[rng.uniform(-8.0, 8.0, (40, 2)), np.full(40, depth)]
     world = cam @ T_a[:3, :3].T + T_a[:3, 3]
-    lens = np.zeros(4) if dist is None else dist
+    px_a, px_b = through_lens(world, T_a, dist), through_lens(world, T_b, dist)
 
-    def through_lens(T_world_cam: np.ndarray) -> np.ndarray:
-        T_cam_world = np.linalg.inv(T_world_cam)
-        rvec, _ = cv2.Rodrigues(T_cam_world[:3, :3])
-        px, _ = cv2.projectPoints(world, rvec, T_cam_world[:3, 3], K, lens)
-        return px.reshape(-1, 2)
-
-    predicted, reaches = predict_on_fixation_plane(through_lens(T_a), K, dist, T_a, T_b, -10.0)
-    np.testing.assert_allclose(predicted, through_lens(T_b), atol=1e-3)
+    predicted, reaches = predict_on_fixation_plane(px_a, K, dist, T_a, T_b, -10.0)
+    np.testing.assert_allclose(predicted, px_b, atol=1e-3)
     assert reaches.all()
     # raise the ground above the plane's lower part: pixels looking down at it now see foreground
-    _, reaches = predict_on_fixation_plane(through_lens(T_a), K, dist, T_a, T_b, 0.5)
+    _, reaches = predict_on_fixation_plane(px_a, K, dist, T_a, T_b, 0.5)
     below = world[:, 2] < 0.5
     assert below.any() and not below.all()
     np.testing.assert_array_equal(reaches, ~below)
@@ -231,15 +236,7 @@ def test_epipolar_distance_is_zero_for_a_true_correspondence_and_grows_off_the_l
     T_b = look_at(np.array([50.0 * np.cos(0.1), 50.0 * np.sin(0.1), 6.0]), target)
     rng = np.random.default_rng(1)
     world = np.c_[rng.uniform(-10.0, 10.0, (30, 2)), rng.uniform(0.0, 3.0, 30)]
-    lens = np.zeros(4) if dist is None else dist
-
-    def through_lens(T_world_cam: np.ndarray) -> np.ndarray:
-        T_cam_world = np.linalg.inv(T_world_cam)
-        rvec, _ = cv2.Rodrigues(T_cam_world[:3, :3])
-        px, _ = cv2.projectPoints(world, rvec, T_cam_world[:3, 3], K, lens)
-        return px.reshape(-1, 2)
-
-    px_a, px_b = through_lens(T_a), through_lens(T_b)
+    px_a, px_b = through_lens(world, T_a, dist), through_lens(world, T_b, dist)
     distances = epipolar_distances_px(px_a, px_b, K, dist, T_a, T_b)
     assert distances.shape == (30, 30)
     np.testing.assert_allclose(np.diag(distances), 0.0, atol=1e-3)
