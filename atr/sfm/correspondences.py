@@ -284,12 +284,9 @@ def surf_with_stats(
         # Only candidates the triangulation could keep compete: a wrong candidate off the line can
         # no longer make the right one fail the ratio test. With fewer rivals a wrong candidate on
         # the line passes more easily too, so the test must hold both ways.
-        allowed = epipolar(kp_a[:, :2], kp_b[:, :2]) <= config.max_reprojection_px
-        index_a, index_b = match_nndr(desc_a, desc_b, config.surf_nndr, allowed)
-        back_b, back_a = match_nndr(desc_b, desc_a, config.surf_nndr, allowed.T)
-        n_b = kp_b.shape[0]
-        both = np.isin(index_a * n_b + index_b, back_a * n_b + back_b)
-        index_a, index_b = index_a[both], index_b[both]
+        near = epipolar(kp_a[:, :2], kp_b[:, :2]) <= config.max_reprojection_px
+        near_a, near_b = np.divmod(np.flatnonzero(near), near.shape[1])  # 8x faster than nonzero
+        index_a, index_b = match_nndr_both_ways(desc_a, desc_b, config.surf_nndr, (near_a, near_b))
     else:
         index_a, index_b = match_nndr(desc_a, desc_b, config.surf_nndr)
     stats["tracked"] = int(index_a.shape[0])
@@ -300,7 +297,7 @@ def match_nndr(
     descriptors_a: np.ndarray,
     descriptors_b: np.ndarray,
     ratio: float,
-    allowed: np.ndarray | None = None,
+    candidates: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Nearest-neighbour distance ratio matching (Mikolajczyk & Schmid 2005), one-to-one.
 
@@ -311,22 +308,78 @@ def match_nndr(
         descriptors_a: (Na, D) float32.
         descriptors_b: (Nb, D) float32, Nb >= 2.
         ratio: NNDR threshold in (0, 1].
-        allowed: (Na, Nb) bool, the pairs that may match; None allows all. A descriptor of a with
-            fewer than two allowed candidates has no ratio and matches nothing.
+        candidates: (K,) indices into a and (K,) indices into b, the pairs that may match (e.g. those
+            near the epipolar line), sorted by index into a; None allows all. A descriptor of a with
+            fewer than two candidates has no ratio and matches nothing.
 
     Returns:
         (M,) int64 indices into a and (M,) int64 indices into b, sorted by index into a.
 
     """
-    matcher = cv2.BFMatcher(cv2.NORM_L2)
-    mask = None if allowed is None else allowed.astype(np.uint8)
-    knn = matcher.knnMatch(
-        descriptors_a.astype(np.float32), descriptors_b.astype(np.float32), k=2, mask=mask
+    desc_a = np.asarray(descriptors_a, np.float32)
+    desc_b = np.asarray(descriptors_b, np.float32)
+    if candidates is None:
+        knn = cv2.BFMatcher(cv2.NORM_L2).knnMatch(desc_a, desc_b, k=2)
+        rows = np.array(
+            [
+                (m[0].queryIdx, m[0].trainIdx, m[0].distance, m[1].distance)
+                for m in knn
+                if len(m) == 2
+            ],
+            dtype=np.float64,
+        ).reshape(-1, 4)
+    else:
+        cand_a, cand_b = (np.asarray(c, np.int64) for c in candidates)
+        distance = np.linalg.norm(desc_a[cand_a] - desc_b[cand_b], axis=1)
+        rows = _two_nearest(cand_a, cand_b, distance)
+    return _ratio_one_to_one(rows, ratio)
+
+
+def match_nndr_both_ways(
+    descriptors_a: np.ndarray,
+    descriptors_b: np.ndarray,
+    ratio: float,
+    candidates: tuple[np.ndarray, np.ndarray],
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs that ``match_nndr`` keeps from a to b and from b to a, among the same candidates.
+
+    Returns:
+        (M,) int64 indices into a and (M,) int64 indices into b, sorted by index into a.
+
+    """
+    cand_a, cand_b = (np.asarray(c, np.int64) for c in candidates)
+    distance = np.linalg.norm(
+        np.asarray(descriptors_a, np.float32)[cand_a]
+        - np.asarray(descriptors_b, np.float32)[cand_b],
+        axis=1,
     )
-    rows = np.array(
-        [(m[0].queryIdx, m[0].trainIdx, m[0].distance, m[1].distance) for m in knn if len(m) == 2],
-        dtype=np.float64,
-    ).reshape(-1, 4)
+    index_a, index_b = _ratio_one_to_one(_two_nearest(cand_a, cand_b, distance), ratio)
+    back_b, back_a = _ratio_one_to_one(_two_nearest(cand_b, cand_a, distance), ratio)
+    n_b = len(descriptors_b)
+    both = np.isin(index_a * n_b + index_b, back_a * n_b + back_b)
+    return index_a[both], index_b[both]
+
+
+def _two_nearest(query: np.ndarray, train: np.ndarray, distance: np.ndarray) -> np.ndarray:
+    """(query, nearest train, its distance, second distance) for each query with two or more
+    candidates among the (query, train, distance) triples.
+
+    Distances only for the candidate pairs, a few per keypoint along its epipolar line, instead of a
+    brute-force search over all of b behind a mask. Equal distances go to the candidate that comes
+    first, the lower index when the pairs come sorted by the other index, as OpenCV breaks them.
+    """
+    if len(query) == 0:
+        return np.zeros((0, 4))
+    # one stable sort on query, then distance: query x 2^k is exact and leaves the distance's bits
+    span = 2.0 ** np.ceil(np.log2(float(distance.max()) + 1.0))
+    order = np.argsort(query * span + distance, kind="stable")
+    q, t, d = query[order], train[order], distance[order]
+    first = np.flatnonzero(np.r_[True, q[1:] != q[:-1]])
+    first = first[np.r_[first[1:], len(q)] - first >= 2]
+    return np.c_[q[first], t[first], d[first], d[first + 1]].astype(np.float64)
+
+
+def _ratio_one_to_one(rows: np.ndarray, ratio: float) -> tuple[np.ndarray, np.ndarray]:
     passed = rows[rows[:, 2] < ratio * rows[:, 3]]
     # One-to-one: for each b keep the closest a (ties broken by lower index a, deterministic).
     order = np.lexsort((passed[:, 0], passed[:, 2]))

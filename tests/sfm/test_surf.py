@@ -9,6 +9,7 @@ import pytest
 
 from atr.errors import InputError
 from atr.sfm import SfmConfig, Surf, match_nndr
+from atr.sfm.correspondences import match_nndr_both_ways
 from atr.sfm.repeatability import matching_score, repeatability
 from atr.sfm.surf import surf_filter_sizes
 
@@ -96,17 +97,47 @@ def test_flat_image_has_no_keypoints_and_bad_images_raise() -> None:
         Surf().detect(bad)
 
 
-def test_nndr_compares_only_the_allowed_candidates() -> None:
+def test_nndr_compares_only_the_candidates() -> None:
     rng = np.random.default_rng(3)
     desc_b = rng.normal(size=(6, 64)).astype(np.float32)
     # A repeated pattern: b holds two copies of a's descriptor, each with a little noise.
     desc_b[1] = desc_b[0] + rng.normal(scale=0.01, size=64)
     desc_a = desc_b[:1] + rng.normal(scale=0.01, size=(1, 64)).astype(np.float32)
     assert len(match_nndr(desc_a, desc_b, 0.6)[0]) == 0  # its runner-up is as close
-    allowed = np.ones((1, 6), bool)
-    allowed[0, 1] = False  # the copy lies off the epipolar line
-    ia, ib = match_nndr(desc_a, desc_b, 0.6, allowed)
+    off_line = np.array([0, 2, 3, 4, 5])  # the copy, b[1], lies off the epipolar line
+    ia, ib = match_nndr(desc_a, desc_b, 0.6, (np.zeros(5, np.int64), off_line))
     assert ia.tolist() == [0] and ib.tolist() == [0]
-    only_one = np.zeros((1, 6), bool)
-    only_one[0, 0] = True  # a lone candidate has no ratio
-    assert len(match_nndr(desc_a, desc_b, 0.6, only_one)[0]) == 0
+    lone = (np.array([0]), np.array([0]))  # a lone candidate has no ratio
+    assert len(match_nndr(desc_a, desc_b, 0.6, lone)[0]) == 0
+
+
+def test_nndr_among_candidates_agrees_with_opencv_behind_a_mask() -> None:
+    # the same ratio test as OpenCV's brute-force k-NN restricted by a mask, on a scene-like case:
+    # b holds a's descriptors shuffled and perturbed, plus distractors; each a sees a random subset
+    rng = np.random.default_rng(11)
+    desc_a = rng.normal(size=(300, 64)).astype(np.float32)
+    perm = rng.permutation(300)
+    desc_b = np.r_[desc_a[perm] + rng.normal(scale=0.3, size=(300, 64)), rng.normal(size=(200, 64))]
+    desc_b = desc_b.astype(np.float32)
+    allowed = rng.random((300, 500)) < 0.05
+    allowed[perm, np.arange(300)] = rng.random(300) < 0.8  # most true partners lie on the line
+    knn = cv2.BFMatcher(cv2.NORM_L2).knnMatch(desc_a, desc_b, k=2, mask=allowed.astype(np.uint8))
+    expected = {
+        (m[0].queryIdx, m[0].trainIdx)
+        for m in knn
+        if len(m) == 2 and m[0].distance < 0.8 * m[1].distance
+    }
+    ia, ib = match_nndr(desc_a, desc_b, 0.8, np.nonzero(allowed))
+    assert len(expected) > 100  # the case matches something
+    # one-to-one can only remove pairs; here no two a share a nearest b
+    assert len({b for _, b in expected}) == len(expected)
+    assert set(zip(ia.tolist(), ib.tolist(), strict=True)) == expected
+    # both ways, among the same candidates, keeps what passes from b's side too
+    ma, mb = match_nndr_both_ways(desc_a, desc_b, 0.8, np.nonzero(allowed))
+    assert set(zip(ma.tolist(), mb.tolist(), strict=True)) <= expected
+    twin = np.r_[desc_a[:1], desc_a[:1] + 0.01, rng.normal(size=(8, 64))].astype(np.float32)
+    pairs = np.nonzero(np.ones((10, 500), bool))
+    one_way = match_nndr(twin, desc_b, 0.8, pairs)
+    assert (0, perm.tolist().index(0)) in set(zip(*(x.tolist() for x in one_way), strict=True))
+    # from b's side a's twins are each other's runner-up: no ratio, no match
+    assert len(match_nndr_both_ways(twin, desc_b, 0.8, pairs)[0]) == 0
