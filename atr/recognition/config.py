@@ -50,6 +50,10 @@ class RecognitionConfig:
             let T-72 fits on roofs through until the terrain rule below removed them; with it 20 scores
             higher with six of the seven descriptors on both tuning sets (docs/recognition.md, "Roofs").
         k_ransac_inlier: RANSAC inlier distance / resolution (one voxel of jitter on each side).
+        k_same_hypothesis: two RANSAC hypotheses of one template view whose poses differ by less than
+            this / resolution in translation and ``same_hypothesis_deg`` in rotation are verified once
+            (a time setting: ICP from starts this close ends alike; docs/recognition.md).
+        same_hypothesis_deg: see ``k_same_hypothesis``.
         k_icp_gate: ICP maximum correspondence distance / resolution (Open3D's registration example
             uses 0.4-1.5 x voxel; 2 lets ICP pull in a hypothesis that RANSAC placed a voxel off).
         icp_iterations: ICP iterations in verification (Open3D's default 30).
@@ -137,6 +141,8 @@ class RecognitionConfig:
     max_groups: int = 20
     k_ransac_inlier: float = 1.0
     k_icp_gate: float = 2.0
+    k_same_hypothesis: float = 0.5
+    same_hypothesis_deg: float = 2.0
     icp_iterations: int = 30
     k_icp_reach: float = 10.0
     k_overlap: float = 1.0
@@ -224,6 +230,11 @@ class RecognitionConfig:
     def ransac_inlier_m(self) -> float:
         """RANSAC inlier distance, metres."""
         return self.k_ransac_inlier * self.resolution_m
+
+    @property
+    def same_hypothesis_m(self) -> float:
+        """Translation under which two hypotheses of one view are verified once, metres."""
+        return self.k_same_hypothesis * self.resolution_m
 
     @property
     def icp_gate_m(self) -> float:

@@ -22,6 +22,7 @@ from atr.recognition.config import RecognitionConfig
 from atr.recognition.steps import (
     Correspondences,
     descriptor_sq_distances,
+    drop_repeated_hypotheses,
     filter_smooth_surfaces,
     group_geometrically_consistent,
     group_upright_hough,
@@ -342,6 +343,10 @@ def recognize(
             )
             if h is not None and h.inliers >= config.min_group_size:
                 hyps.append((vi, h))
+        n_ransac = len(hyps)
+        hyps = drop_repeated_hypotheses(
+            hyps, config.same_hypothesis_m, np.radians(config.same_hypothesis_deg)
+        )
         t = clock.add("ransac", t)
         model_all = np.asarray(tpl.points_m, np.float64)
         extent = model_extent_m(tpl)
@@ -423,7 +428,8 @@ def recognize(
                 "views": len(views),
                 "correspondences": int(sum(len(c) for c in matches)),
                 "groups": int(sum(len(g) for g in view_groups)),
-                "hypotheses": len(hyps),
+                "hypotheses": n_ransac,
+                "distinct_hypotheses": len(hyps),
                 "accepted": accepted,
             }
         )

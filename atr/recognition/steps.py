@@ -10,6 +10,7 @@ form. Open3D provides k-NN normals and ICP.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numba
@@ -572,6 +573,40 @@ def ransac_per_group(
     T = (upright_rigid_transform if upright else rigid_transform)(m[mask], s[mask])
     final = np.sum(((m @ T[:3, :3].T + T[:3, 3]) - s) ** 2, axis=1) < inlier_m**2
     return Hypothesis(T_scene_model=T, inliers=int(max(final.sum(), best_count)), group_size=n)
+
+
+def drop_repeated_hypotheses(
+    hypotheses: Sequence[tuple[int, Hypothesis]], same_m: float, same_rad: float
+) -> list[tuple[int, Hypothesis]]:
+    """Keep the first of hypotheses of one view that place the model alike.
+
+    Groups of neighbouring Hough cells often lead RANSAC to the same pose; ICP from starts this close
+    ends alike, so verifying each again costs time and changes nothing (docs/recognition.md).
+
+    Args:
+        hypotheses: (view index, hypothesis) pairs, best first.
+        same_m: two poses closer than this in translation, metres ...
+        same_rad: ... and in rotation angle, radians, are one.
+
+    Returns:
+        The hypotheses kept, in their order.
+
+    """
+    kept: list[tuple[int, Hypothesis]] = []
+    for view, h in hypotheses:
+        T = h.T_scene_model
+        repeated = False
+        for kept_view, k in kept:
+            if kept_view != view:
+                continue
+            R_between = k.T_scene_model[:3, :3].T @ T[:3, :3]
+            angle = np.arccos(np.clip((np.trace(R_between) - 1.0) / 2.0, -1.0, 1.0))
+            if np.linalg.norm(k.T_scene_model[:3, 3] - T[:3, 3]) < same_m and angle < same_rad:
+                repeated = True
+                break
+        if not repeated:
+            kept.append((view, h))
+    return kept
 
 
 @dataclass(frozen=True)

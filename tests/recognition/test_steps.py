@@ -9,9 +9,11 @@ from scipy.spatial import cKDTree
 from atr.errors import ConfigError, InputError
 from atr.recognition import (
     Correspondences,
+    Hypothesis,
     RecognitionConfig,
     Template,
     descriptor_sq_distances,
+    drop_repeated_hypotheses,
     filter_smooth_surfaces,
     group_geometrically_consistent,
     group_upright_hough,
@@ -153,6 +155,27 @@ def _upright_pose(yaw_deg: float, t: list[float]) -> np.ndarray:
     T[:3, :3] = [[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]]
     T[:3, 3] = t
     return T
+
+
+def test_repeated_hypotheses_of_a_view_are_verified_once():
+    def hyp(yaw_deg: float, t: list[float], inliers: int) -> Hypothesis:
+        return Hypothesis(_upright_pose(yaw_deg, t), inliers, inliers)
+
+    first = (0, hyp(30.0, [10.0, 5.0, 0.0], 40))
+    hyps = [
+        first,
+        (0, hyp(31.0, [10.1, 5.0, 0.0], 30)),  # the same pose again: dropped
+        (1, hyp(30.0, [10.0, 5.0, 0.0], 30)),  # another view of the template: kept
+        (0, hyp(33.0, [10.0, 5.0, 0.0], 20)),  # turned 3 deg: kept
+        (0, hyp(30.0, [10.0, 5.2, 0.0], 20)),  # 0.2 m away: kept
+    ]
+    kept = drop_repeated_hypotheses(hyps, 0.15, math.radians(2.0))
+    assert kept == [hyps[0], hyps[2], hyps[3], hyps[4]]
+    # the rotation test sees any axis, not only the heading
+    tilted = _upright_pose(30.0, [10.0, 5.0, 0.0])
+    c, s_ = math.cos(math.radians(3.0)), math.sin(math.radians(3.0))
+    tilted[:3, :3] = tilted[:3, :3] @ np.array([[1.0, 0.0, 0.0], [0.0, c, -s_], [0.0, s_, c]])
+    assert len(drop_repeated_hypotheses([first, (0, Hypothesis(tilted, 9, 9))], 0.15, 0.035)) == 2
 
 
 def test_upright_ransac_keeps_a_side_view_standing():
