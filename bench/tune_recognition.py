@@ -250,6 +250,7 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
     # verbose: each T-72 detection's base height above the terrain as the matcher's roof rule
     # estimates it (docs/recognition.md, "Roofs"), by outcome
     above_terrain: dict[bool, list[float]] = {True: [], False: []}
+    hypotheses = [0, 0]  # from RANSAC, and verified (repeats of one view dropped)
     for sc in scenes:
         res = recognize(
             sc["points"],
@@ -260,6 +261,9 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
             scene_sigma_m=sc["sigma"],
         )
         times.append(res.stage_times_ms["total"])
+        for per_template in res.stats.get("templates", []):
+            hypotheses[0] += per_template["hypotheses"]
+            hypotheses[1] += per_template["distinct_hypotheses"]
         for k, v in res.stage_times_ms.items():
             stage_sum.setdefault(k, []).append(v)
         has = sc["visible"][1] >= present
@@ -319,6 +323,8 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
         "t_error_median_m": float(np.median(errors)) if errors else float("nan"),
         "time_median_ms": float(statistics.median(times)) if times else float("nan"),
         "stages_median_ms": {k: float(statistics.median(v)) for k, v in stage_sum.items()},
+        "hypotheses": hypotheses[0],
+        "hypotheses_verified": hypotheses[1],
     }
 
 
@@ -349,6 +355,7 @@ def eval_cmd(args: argparse.Namespace) -> None:
         f"  t_err {s['t_error_median_m']:.2f} m  time {s['time_median_ms']:.0f} ms"
     )
     print("  stages " + " ".join(f"{k} {v:.0f}" for k, v in s["stages_median_ms"].items()))
+    print(f"  hypotheses {s['hypotheses']}, verified {s['hypotheses_verified']}")
     if args.json:
         Path(args.json).write_text(json.dumps(s, indent=1))
 
