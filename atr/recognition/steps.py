@@ -96,7 +96,11 @@ def height_above_ground(
     point (the ground if the cell shows any), then the ``percentile`` of those cell values within
     ``window_m`` around the cell. A vehicle, a tree or a roof covers only part of a window wider than the
     vehicle, so the low percentile returns the ground around it, while isolated points below the ground
-    (reconstruction outliers) do not drag it down as a plain minimum would.
+    (reconstruction outliers) do not drag it down as a plain minimum would. Empty cells count as higher
+    than every occupied one, so in a sparsely sampled window the estimate rises towards the highest
+    occupied cells: sparse regions stand lower than they are. This keeps isolated background points out
+    of the keypoints, and also a target seen edge-on at long range; taking the percentile of the occupied
+    cells only was measured and not kept (docs/recognition.md, "Ground in sparse clouds").
 
     Args:
         points: (N, 3) float, metres, finite.
