@@ -31,7 +31,7 @@ from atr.sfm import SfmConfig  # noqa: E402
 from atr.sfm.correspondences import as_gray_u8, detect_gftt, gftt_klt_with_stats  # noqa: E402
 from atr.sfm.triangulation import predict_on_fixation_plane  # noqa: E402
 from atr.sim.config import SimConfig  # noqa: E402
-from atr.sim.render import Renderer  # noqa: E402
+from atr.sim.render import Renderer, project  # noqa: E402
 from atr.sim.scenarios import scenario  # noqa: E402
 from atr.sim.world import build_world  # noqa: E402
 from bench.tune_recognition import _render_pair  # noqa: E402
@@ -84,7 +84,7 @@ def track_on_target(
     pixels_b[tracked] = both_b
     tracked &= on
     true_b = np.full((len(corners), 2), np.nan)
-    true_b[on] = project(sim.K, T_b, points_world[on])
+    true_b[on] = project(points_world[on], sim.K, T_b)
     error = np.linalg.norm(pixels_b - true_b, axis=1)
     aided = tracked & ~deep
     lost = on & ~tracked
@@ -101,13 +101,6 @@ def track_on_target(
         f"prediction is a median {_median(prediction_error):.1f} px off"
     )
     return tracked
-
-
-def project(K: np.ndarray, T_world_cam: np.ndarray, points_world: np.ndarray) -> np.ndarray:
-    """(N, 2) pixels of (N, 3) world points (pinhole, no distortion: the simulator's camera)."""
-    p_cam = (points_world - T_world_cam[:3, 3]) @ T_world_cam[:3, :3]
-    uvw = p_cam @ K.T
-    return uvw[:, :2] / uvw[:, 2:3]
 
 
 def _median(x: np.ndarray) -> float:
@@ -156,7 +149,7 @@ def main() -> int:
         f"the pose-aided second pass tracks {stats['tracked_aided']} more"
     )
     p_target = world.T_world_target[:3, 3]
-    uv_a, uv_b = (project(cfg.K, T, p_target[None])[0] for T in (T_a, T_b))
+    uv_a, uv_b = (project(p_target[None], cfg.K, T)[0] for T in (T_a, T_b))
     print(f"target moves {np.round(uv_b - uv_a, 1)} px between the frames")
     gray_a = cv2.cvtColor(img_a, cv2.COLOR_RGB2GRAY)
     gray_b = cv2.cvtColor(img_b, cv2.COLOR_RGB2GRAY)
