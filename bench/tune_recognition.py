@@ -3,7 +3,7 @@
 The evaluation uses world seed 0 (and others chosen there); this tuning set uses seeds 101-105 only.
 
     python bench/tune_recognition.py make  [--cache DIR] [--seeds 101 102 ...] [--pairs 2] [--lidar-every 3]
-                                           [--keep-images]
+                                           [--pair-gap N] [--keep-images]
     python bench/tune_recognition.py resfm --from DIR --cache DIR2 [--set sfm_field=value ...]
     python bench/tune_recognition.py eval  [--cache DIR] [--descriptor shot] [--source sfm|lidar]
                                            [--set field=value ...] [--scenario 1 ...] [--verbose]
@@ -17,7 +17,9 @@ Pairs are spread along each run so that the tuning set sees the target from all 
 settings into another folder (comparing SfM settings by their effect on recognition, without rendering).
 
 A second, larger set for the weak cells (50 and 100 m, 240 scenes; docs/recognition.md, "Roofs"):
-``make --scenario 1 2 --pairs 6 --lidar-every 0 --keep-images --cache DIR``.
+``make --scenario 1 2 --pairs 6 --lidar-every 0 --keep-images --cache DIR``. A larger 200 m cell (40 scenes;
+docs/recognition.md, "200 m on a larger sample"): ``make --scenario 3 --pairs 4 --lidar-every 0 --seeds 101
+102 ... 110 --cache DIR``, and with ``--pair-gap 2`` the same scenes from frames two intervals apart.
 
 ``eval`` builds the templates of the T-72 and its confusers (IFV, 6x6 truck) as the template store does,
 runs ``atr.recognition.recognize`` on every cached cloud and scores it with ``atr.evaluation.metrics``
@@ -86,7 +88,7 @@ def make(args: argparse.Namespace) -> None:
     from atr.sim.world import build_world
 
     cfg = SimConfig()
-    sfm_cfg = SfmConfig()
+    sfm_cfg = SfmConfig() if args.pair_gap is None else SfmConfig(pair_gap_frames=args.pair_gap)
     gap = sfm_cfg.pair_gap_frames
     args.cache.mkdir(parents=True, exist_ok=True)
     n_done = 0
@@ -374,6 +376,12 @@ def main() -> int:
         "--lidar-every", type=int, default=3, help="a LIDAR scan with every n-th pair (0: none)"
     )
     mk.add_argument("--shard", type=int, nargs=2, default=None, metavar=("I", "N"))
+    mk.add_argument(
+        "--pair-gap",
+        type=int,
+        default=None,
+        help="frames between the two views of a pair (default: SfmConfig.pair_gap_frames)",
+    )
     mk.add_argument(
         "--keep-images", action="store_true", help="store the image pairs too (for resfm)"
     )
