@@ -1,6 +1,7 @@
 """Tuning set for the 3D ATR matcher, kept apart from the evaluation worlds, and its scoring.
 
-The evaluation uses world seed 0 (and others chosen there); this tuning set uses seeds 101-105 only.
+The evaluation uses world seed 0 (and others chosen there); this tuning set uses seeds 101-105 (101-110 for the
+larger 200 m cell below).
 
     python bench/tune_recognition.py make  [--cache DIR] [--seeds 101 102 ...] [--pairs 2] [--lidar-every 3]
                                            [--pair-gap N] [--keep-images]
@@ -19,7 +20,8 @@ settings into another folder (comparing SfM settings by their effect on recognit
 A second, larger set for the weak cells (50 and 100 m, 240 scenes; docs/recognition.md, "Roofs"):
 ``make --scenario 1 2 --pairs 6 --lidar-every 0 --keep-images --cache DIR``. A larger 200 m cell (40 scenes;
 docs/recognition.md, "200 m on a larger sample"): ``make --scenario 3 --pairs 4 --lidar-every 0 --seeds 101
-102 ... 110 --cache DIR``, and with ``--pair-gap 2`` the same scenes from frames two intervals apart.
+102 ... 110 --cache DIR``, and with ``--pair-gap 2`` pairs of frames two intervals apart (the second
+frame within one frame of the gap-1 pair's).
 
 ``eval`` builds the templates of the T-72 and its confusers (IFV, 6x6 truck) as the template store does,
 runs ``atr.recognition.recognize`` on every cached cloud and scores it with ``atr.evaluation.metrics``
