@@ -8,12 +8,15 @@ The waiting side's own error reports (e.g. its timeout warnings) answer nothing.
 from __future__ import annotations
 
 import threading
+import time
 
 import zenoh
 
 from bus import codec
+from bus.stopping import StopRequest
 
 DEFAULT_ANSWER_KEY = "atr/{uav}/detections"
+STOP_POLL_S = 0.1  # how often a waiting `wait` looks at its stop request, s
 
 
 class AnswerWatch:
@@ -56,21 +59,24 @@ class AnswerWatch:
                 self._cv.notify_all()
 
     def wait(
-        self, uav: str, stamp_ns: int, timeout_s: float, stop: threading.Event | None = None
+        self, uav: str, stamp_ns: int, timeout_s: float, stop: StopRequest | None = None
     ) -> bool:
-        """True once frame `stamp_ns` of `uav` was answered; False after `timeout_s` or on `stop`."""
-        with self._cv:
-            answered = self._cv.wait_for(
-                lambda: (uav, stamp_ns) in self._answers or (stop is not None and stop.is_set()),
-                timeout=timeout_s,
-            )
-            self._answers.discard((uav, stamp_ns))
-        return bool(answered) and not (stop is not None and stop.is_set())
+        """True once frame `stamp_ns` of `uav` was answered; False after `timeout_s` or on `stop`.
 
-    def wake(self) -> None:
-        """Make a pending `wait` look at its stop event again."""
+        `stop` is looked at every `STOP_POLL_S`: a signal handler sets it and must not take our lock
+        to wake us (bus/stopping.py).
+        """
+        deadline = time.monotonic() + timeout_s
+        key = (uav, stamp_ns)
         with self._cv:
-            self._cv.notify_all()
+            while key not in self._answers and not (stop is not None and stop.is_set()):
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                self._cv.wait(min(left, STOP_POLL_S))
+            answered = key in self._answers
+            self._answers.discard(key)
+        return answered and not (stop is not None and stop.is_set())
 
     def close(self) -> None:
         """Stop watching."""

@@ -20,7 +20,6 @@ from __future__ import annotations
 import logging
 import os
 import queue
-import signal
 import socket
 import threading
 import time
@@ -35,6 +34,7 @@ import zenoh
 from atr.errors import AtrError, BusError, SchemaError
 from bus import codec, keys
 from bus.session import open_session
+from bus.stopping import StopRequest, stop_on_signals
 
 log = logging.getLogger("atr")
 
@@ -105,8 +105,10 @@ class Node:
         self.uav = uav
         self.source_id = f"{service}@{socket.gethostname()}:{os.getpid()}"
         self.counters = Counters()
-        self._queue: queue.Queue[_Raw | None] = queue.Queue(maxsize=max_queue)
-        self._stop = threading.Event()
+        # SimpleQueue, not Queue: a signal handler puts into it (see bus/stopping.py).
+        self._queue: queue.SimpleQueue[_Raw | None] = queue.SimpleQueue()
+        self._max_queue = max_queue
+        self._stop = StopRequest()
         self._publish_lock = threading.Lock()
         self._seq_by_key: dict[str, int] = {}
         self._last_seq: dict[tuple[str, str], int] = {}
@@ -126,21 +128,16 @@ class Node:
     # Lifecycle -------------------------------------------------------------------------------
 
     def __enter__(self) -> Node:
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGTERM, signal.SIGINT):
-                signal.signal(sig, lambda *_: self.stop())
+        stop_on_signals(self.stop)
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
 
     def stop(self) -> None:
-        """Ask `events()` to end after the input in hand."""
+        """Ask `events()` to end after the input in hand. Takes no lock: signal handlers call it."""
         self._stop.set()
-        try:
-            self._queue.put_nowait(None)
-        except queue.Full:
-            pass
+        self._queue.put(None)
 
     def ready(self) -> None:
         """Declare the service ready (status `running`): launchers wait for this before sending inputs."""
@@ -170,10 +167,10 @@ class Node:
     def _on_sample(self, sample: zenoh.Sample) -> None:
         attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
         raw = _Raw(str(sample.key_expr), sample.payload.to_bytes(), attachment)
-        try:
-            self._queue.put_nowait(raw)
-        except queue.Full:
+        if self._queue.qsize() >= self._max_queue:
             self.counters.dropped += 1
+            return
+        self._queue.put(raw)
 
     def pending(self) -> int:
         """Inputs received and not yet handed out by ``events()``."""

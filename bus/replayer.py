@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import logging
 import re
-import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -40,6 +39,7 @@ from bus import codec, keys
 from bus.answers import DEFAULT_ANSWER_KEY, AnswerWatch
 from bus.node import Node
 from bus.session import open_session
+from bus.stopping import StopRequest
 
 log = logging.getLogger("atr.replayer")
 
@@ -111,7 +111,7 @@ class Replayer:
         self.node = Node(service, status_uav, session=self.session)
         self.source_id = self.node.source_id
         self.stats = ReplayStats()
-        self._stop = threading.Event()
+        self._stop = StopRequest()
         self._wait_for = tuple(wait_for)
         self._ready_timeout_s = ready_timeout_s
         self._match_timeout_s = match_timeout_s
@@ -197,10 +197,10 @@ class Replayer:
         return methods[mode](**kwargs)
 
     def stop(self) -> None:
-        """Ask a running replay to end after the message in hand."""
+        """Ask a running replay to end after the message in hand. Takes no lock: signal handlers
+        call it.
+        """
         self._stop.set()
-        if self._watch is not None:
-            self._watch.wake()
 
     def close(self, linger_s: float = 0.3) -> None:
         """Let the last publications leave (`linger_s`), then undeclare and close what this replayer

@@ -58,11 +58,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Replay the file; returns 0, or 1 when lock-step answers timed out."""
-    import signal
-    import threading
-
     from bus.node import setup_logging
     from bus.replayer import Replayer
+    from bus.stopping import stop_on_signals
 
     setup_logging("replayer")
     with Replayer(
@@ -73,9 +71,7 @@ def run(args: argparse.Namespace) -> int:
         ready_timeout_s=args.ready_timeout,
         settle_s=args.settle,
     ) as replayer:
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                signal.signal(sig, lambda *_: replayer.stop())
+        stop_on_signals(replayer.stop)
         if args.lock_step:
             stats = replayer.lock_step(args.answer_key, args.answer_timeout)
         elif args.fast:

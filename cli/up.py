@@ -13,8 +13,6 @@ Examples:
 from __future__ import annotations
 
 import argparse
-import signal
-import threading
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -58,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
 
     from bus.launcher import Supervisor, load_layout  # noqa: PLC0415
     from bus.node import setup_logging  # noqa: PLC0415
+    from bus.stopping import StopRequest, stop_on_signals  # noqa: PLC0415
 
     setup_logging("up")
     layout = load_layout(args.layout, parse_vars(args.var))
@@ -67,9 +66,8 @@ def run(args: argparse.Namespace) -> int:
         hosts=tuple(args.host) if args.host else None,
         skip_roles=("source",) if args.no_source else (),
     )
-    stop = threading.Event()
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(sig, lambda *_: stop.set())
+    stop = StopRequest()
+    stop_on_signals(stop.set)
     supervisor.start()
     logging.getLogger("atr").info(
         "layout %s up: %s", layout.name, [p.name for p in supervisor.specs]

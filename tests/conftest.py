@@ -23,13 +23,13 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 _HUB_CODE = """
-import signal, sys, threading
+import sys
 from bus.session import default_config, open_session
+from bus.stopping import StopRequest, stop_on_signals
 mode = sys.argv[2] if len(sys.argv) > 2 else "peer"
 session = open_session(default_config(mode, connect=[], listen=[sys.argv[1]]))
-stop = threading.Event()
-for sig in (signal.SIGTERM, signal.SIGINT):
-    signal.signal(sig, lambda *_: stop.set())
+stop = StopRequest()
+stop_on_signals(stop.set)
 print("ready", flush=True)
 stop.wait()
 session.close()

@@ -13,11 +13,10 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
-import threading
 
 from bus.node import setup_logging
 from bus.session import default_config, load_config, open_session
+from bus.stopping import StopRequest, stop_on_signals
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,9 +33,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     setup_logging("router")
     config = load_config(args.zenoh) if args.zenoh else default_config(args.mode, [], args.listen)
-    stop = threading.Event()
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(sig, lambda *_: stop.set())
+    stop = StopRequest()
+    stop_on_signals(stop.set)
     session = open_session(config)
     logging.getLogger("atr").info(
         "listening on %s as %s", config["listen"]["endpoints"], config["mode"]
