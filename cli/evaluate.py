@@ -602,6 +602,7 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
                         "scenes_with_target": s.scenes_with_target,
                         "errors": s.errors,
                         "t_errors_m": list(s.t_errors_m),
+                        "outcomes": list(s.outcomes),
                         "nav_error_median_m": s.nav_error_median_m,
                         "stages_ms": s.stages_ms,
                         "cloud_points_median": float(np.median([r.cloud_points for r in records]))

@@ -365,6 +365,84 @@ def _best(group: Mapping[str, Mapping[str, Any]], pipeline_prefix: str) -> tuple
     return max(cands, key=lambda x: x[1]) if cands else None
 
 
+def _scene_outcomes(rows: Sequence[Mapping[str, Any]]) -> dict[str, tuple[tuple, list[str]]]:
+    """Each arm's scene outcomes, its runs in (scenario, run) order, with the runs they came from
+    (two arms pair only on the same runs); arms with a run written without outcomes are left out.
+    """
+    from atr.evaluation.aggregate import arm_label  # noqa: PLC0415
+
+    by_arm: dict[str, list[Mapping[str, Any]]] = {}
+    for row in rows:
+        by_arm.setdefault(arm_label(row), []).append(row)
+    out = {}
+    for arm, members in by_arm.items():
+        if any(r.get("outcomes") is None for r in members):
+            continue
+        members = sorted(members, key=lambda r: (r["scenario"], r["run"]))
+        runs = tuple((r["scenario"], r["run"], len(r["outcomes"])) for r in members)
+        out[arm] = (runs, [o for r in members for o in r["outcomes"]])
+    return out
+
+
+def _interval(outcomes: Mapping[str, tuple[tuple, list[str]]], arm: str) -> str:
+    from atr.evaluation.metrics import f1_interval  # noqa: PLC0415
+
+    if arm not in outcomes:
+        return "–"
+    low, high = f1_interval(outcomes[arm][1])
+    return f"{_pct(low)}–{_pct(high)}"
+
+
+def _differences_section(
+    overall: Mapping[str, Mapping[str, Any]], outcomes: Mapping[str, tuple[tuple, list[str]]]
+) -> list[str]:
+    """F1 of each SfM GFTT descriptor and of each other method's best against the best SfM GFTT arm,
+    with paired bootstrap intervals of the difference.
+    """
+    from atr.evaluation.metrics import INTERVAL_CONFIDENCE, f1_interval  # noqa: PLC0415
+
+    best = _best(overall, "gftt-sfm/")
+    if best is None or best[0] not in outcomes:
+        return []
+    reference = best[0]
+    others = [a for a in sorted(overall, key=_arm_sort) if a.startswith("gftt-sfm/")]
+    for prefix in ("surf-sfm/", "lidar/", "2d-"):
+        family_best = _best(overall, prefix)
+        if family_best is not None:
+            others.append(family_best[0])
+    rows = []
+    for arm in others:
+        if arm == reference or arm not in outcomes:
+            continue
+        if outcomes[arm][0] != outcomes[reference][0]:
+            continue  # not the same scenes: no paired interval
+        low, high = f1_interval(outcomes[arm][1], outcomes[reference][1])
+        rows.append(
+            [
+                arm,
+                _pct(overall[arm]["f1"]),
+                f"{100 * (overall[arm]['f1'] - best[1]):+.1f}",
+                f"{100 * low:+.1f} to {100 * high:+.1f}",
+                "yes" if low > 0 or high < 0 else "no",
+            ]
+        )
+    level = f"{100 * INTERVAL_CONFIDENCE:.0f} %"
+    return [
+        "",
+        f"### Which differences are real: each arm against {reference}",
+        "",
+        f"Paired bootstrap over the scenes (both arms judged the same ones; {level} percentile "
+        "intervals, `atr.evaluation.metrics.f1_interval`). *Differs* = the interval of the "
+        "difference excludes 0. Consecutive scenes of a flight are alike, so the intervals are if "
+        "anything too narrow.",
+        "",
+        _table(
+            ["pipeline / descriptor", "F1", "F1 − best, points", f"{level} interval", "differs"],
+            rows,
+        ),
+    ]
+
+
 def _examples_section(figs: Figures, recording: Path) -> list[str]:
     """Fig. 7: examples of SfM 3D ATR from a recorded flight."""
     scenes = example_scenes(recording)
@@ -474,6 +552,12 @@ def build_report(
         ),
     ]
     by_class = _f1_by(clean, lambda r: OBLIQUITY_CLASS.get(float(r["obliquity_deg"]), "other"))
+    class_outcomes = {
+        cls: _scene_outcomes(
+            [r for r in clean if OBLIQUITY_CLASS.get(float(r["obliquity_deg"])) == cls]
+        )
+        for cls in ("low", "medium", "high")
+    }
     comp_rows = []
     for cls in ("low", "medium", "high"):
         g = by_class.get(cls, {})
@@ -491,26 +575,34 @@ def build_report(
                     NAMES.get(fam, "2D (best pair)"),
                     f"*{_pct(paper)}*" + (f" *({note})*" if note else ""),
                     f"{_pct(best[1])} ({best[0]})" if best else "not run",
+                    _interval(class_outcomes[cls], best[0]) if best else "–",
                 ]
             )
     parts += [
         "",
         "Best F1 per method at low (0° and 15°), medium (30°) and high (45°) obliquity, beside §III-D-2:",
         "",
-        _table(["obliquity", "method", "paper", "ours (best descriptor)"], comp_rows),
+        _table(
+            ["obliquity", "method", "paper", "ours (best descriptor)", "95 % interval (ours)"],
+            comp_rows,
+        ),
+        "",
+        "Intervals: bootstrap over the scenes (see below, under Overall F1).",
     ]
     # Fig. 6: overall
     overall = pool(clean, arm_label)
+    outcomes = _scene_outcomes(clean)
     parts += [
         "",
         "## Overall F1 (Fig. 6)",
         "",
         _table(
-            ["pipeline / descriptor", "F1", "TP", "FP", "FN", "TN", "scenes"],
+            ["pipeline / descriptor", "F1", "95 % interval", "TP", "FP", "FN", "TN", "scenes"],
             [
                 [
                     a,
                     _pct(v["f1"]),
+                    _interval(outcomes, a),
                     str(v["tp"]),
                     str(v["fp"]),
                     str(v["fn"]),
@@ -526,6 +618,7 @@ def build_report(
             "Overall F1 (Fig. 6)",
             {"all scenes": {a: v["f1"] for a, v in overall.items()}},
         ),
+        *_differences_section(overall, outcomes),
     ]
     if example is not None:
         parts += ["", *_examples_section(figs, example)]

@@ -15,8 +15,15 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from scipy.stats import bootstrap
+
+from atr.errors import InputError
 
 MAX_TRANSLATION_ERROR_M = 2.0  # §III-C
+INTERVAL_CONFIDENCE = 0.95
+INTERVAL_RESAMPLES = (
+    5000  # bootstrap replicates; on 155 scenes the ends move by <= 0.004 across seeds
+)
 
 Outcome = Literal["tp", "fp", "fn", "tn"]
 
@@ -85,3 +92,72 @@ def count(scores: Sequence[SceneScore]) -> Counts:
     """Totals of a list of scene scores."""
     outcomes = [s.outcome for s in scores]
     return Counts(*(outcomes.count(o) for o in ("tp", "fp", "fn", "tn")))
+
+
+def f1_interval(
+    outcomes: Sequence[Outcome],
+    versus: Sequence[Outcome] | None = None,
+    *,
+    confidence: float = INTERVAL_CONFIDENCE,
+    resamples: int = INTERVAL_RESAMPLES,
+    seed: int = 0,
+) -> tuple[float, float]:
+    """Bootstrap interval of F1 over the scenes (percentile method, `scipy.stats.bootstrap`).
+
+    The scenes are what varies: another world would give other scenes of the same flights. With
+    `versus`, the interval of F1(outcomes) - F1(versus) for two arms that judged the same scenes,
+    paired (each replicate draws the same scenes for both), so the scenes both find or both miss do
+    not widen it. An interval of a difference that excludes 0 says the arms really differ on such
+    scenes. Consecutive scenes of a flight are alike, so the intervals are if anything too narrow.
+
+    Args:
+        outcomes: one outcome per scene ("tp", "fp", "fn", "tn").
+        versus: the other arm's outcomes on the same scenes, in the same order, or None.
+        confidence: two-sided confidence level.
+        resamples: bootstrap replicates.
+        seed: seed of the replicates (the same seed gives the same interval).
+
+    Returns:
+        (low, high); (nan, nan) without scenes.
+
+    Raises:
+        InputError: `versus` has another number of scenes.
+
+    """
+    arms = [outcomes] if versus is None else [outcomes, versus]
+    if versus is not None and len(versus) != len(outcomes):
+        raise InputError(
+            f"paired F1 interval needs the same scenes: {len(outcomes)} against {len(versus)}"
+        )
+    if len(outcomes) == 0:
+        return float("nan"), float("nan")
+    data = [
+        (np.asarray(arm) == name).astype(np.float64) for arm in arms for name in ("tp", "fp", "fn")
+    ]
+
+    def statistic(*indicators: np.ndarray, axis: int = -1) -> np.ndarray:
+        f1 = [_f1(*indicators[i : i + 3], axis=axis) for i in range(0, len(indicators), 3)]
+        return f1[0] if len(f1) == 1 else f1[0] - f1[1]
+
+    if all(np.ptp(d) == 0 for d in data):  # every scene alike: nothing to resample
+        value = float(statistic(*data))
+        return value, value
+    result = bootstrap(
+        data,
+        statistic,
+        paired=True,
+        vectorized=True,
+        method="percentile",
+        confidence_level=confidence,
+        n_resamples=resamples,
+        rng=np.random.default_rng(seed),
+    )
+    return float(result.confidence_interval.low), float(result.confidence_interval.high)
+
+
+def _f1(tp: np.ndarray, fp: np.ndarray, fn: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Eq. (5) of per-scene indicator arrays, along `axis`; NaN where nothing is scored."""
+    t = tp.sum(axis=axis)
+    denominator = 2 * t + fp.sum(axis=axis) + fn.sum(axis=axis)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(denominator > 0, 2 * t / denominator, np.nan)

@@ -65,6 +65,8 @@ class RunSummary:
         errors: scenes where a stage raised a typed error (no answer).
         nav_error_median_m: median distance between the pipeline's and the true camera position
             (0 for the baselines, which use the true pose; NaN when unknown).
+        outcomes: every scene's outcome ("tp", "fp", "fn", "tn"), in scene order (what the report's
+            bootstrap intervals resample).
 
     """
 
@@ -77,6 +79,7 @@ class RunSummary:
     scenes_with_target: int
     errors: int
     nav_error_median_m: float = float("nan")
+    outcomes: tuple[str, ...] = ()
 
 
 def summarise(
@@ -102,4 +105,5 @@ def summarise(
         nav_error_median_m=float(np.median([r.nav_error_m for r in records]))
         if records
         else float("nan"),
+        outcomes=tuple(s.outcome for s in scores),
     )
