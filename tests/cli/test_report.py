@@ -7,8 +7,16 @@ from pathlib import Path
 
 import numpy as np
 
+from atr.evaluation.aggregate import arm_label, pool
 from bus import keys
-from cli.report import EXAMPLE_RADIUS_M, Figures, _examples_section, example_scenes
+from cli.report import (
+    EXAMPLE_RADIUS_M,
+    Figures,
+    _differences_section,
+    _examples_section,
+    _scene_outcomes,
+    example_scenes,
+)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_flight_report import (  # noqa: E402
@@ -82,3 +90,47 @@ def test_a_flight_without_a_true_positive_has_nothing_to_draw(tmp_path: Path):
     flight(path, T_off)
     assert example_scenes(path) == []
     assert "holds no recognised scene" in "\n".join(_examples_section(Figures(tmp_path), path))
+
+
+def _run_row(pipeline: str, descriptor: str, run: int, outcomes: list[str]) -> dict:
+    return {
+        "scenario": 1,
+        "run": run,
+        "pipeline": pipeline,
+        "descriptor": descriptor,
+        "scenes": len(outcomes),
+        "outcomes": outcomes,
+        **{k: outcomes.count(k) for k in ("tp", "fp", "fn", "tn")},
+    }
+
+
+def test_the_report_tells_a_real_difference_from_noise():
+    rng = np.random.default_rng(11)
+    best = [[str(o) for o in rng.choice(["tp", "fn"], size=60, p=[0.9, 0.1])] for _ in range(2)]
+    # one scene more missed: noise; every other true positive missed: a real difference
+    close = [best[0][:-1] + ["fn"], best[1]]
+    worse = [[o if i % 2 else "fn" for i, o in enumerate(run)] for run in best]
+    rows = [
+        _run_row(p, d, run + 1, outcomes[run])
+        for p, d, outcomes in (
+            ("gftt-sfm", "rops", best),
+            ("gftt-sfm", "shot", close),
+            ("lidar", "shot", worse),
+        )
+        for run in range(2)
+    ]
+    rows.append(_run_row("gftt-sfm", "usc", 1, best[0]))  # one run only: not the same scenes
+    rows.append({**_run_row("gftt-sfm", "usc", 2, best[1]), "outcomes": None})
+    overall = pool(rows, arm_label)
+    outcomes = _scene_outcomes(rows)
+    assert set(outcomes) == {"gftt-sfm/rops", "gftt-sfm/shot", "lidar/shot"}
+    section = "\n".join(_differences_section(overall, outcomes))
+    assert "against gftt-sfm/rops" in section
+    table = {
+        line.split(" | ")[0][2:]: line.split(" | ")
+        for line in section.splitlines()
+        if line.startswith("| gftt") or line.startswith("| lidar")
+    }
+    assert set(table) == {"gftt-sfm/shot", "lidar/shot"}
+    assert table["gftt-sfm/shot"][-1].startswith("no")
+    assert table["lidar/shot"][-1].startswith("yes")
