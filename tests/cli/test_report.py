@@ -1,4 +1,5 @@
-"""`atr report`'s Fig. 7: recognised scenes of a recorded flight, drawn in the true world frame."""
+"""`atr report`: Fig. 7 (recognised scenes of a recorded flight, drawn in the true world frame) and the
+table of which arms really differ."""
 
 from __future__ import annotations
 
@@ -108,7 +109,8 @@ def test_the_report_tells_a_real_difference_from_noise():
     rng = np.random.default_rng(11)
     best = [[str(o) for o in rng.choice(["tp", "fn"], size=60, p=[0.9, 0.1])] for _ in range(2)]
     # one scene more missed: noise; every other true positive missed: a real difference
-    close = [best[0][:-1] + ["fn"], best[1]]
+    first_tp = best[0].index("tp")
+    close = [best[0][:first_tp] + ["fn"] + best[0][first_tp + 1 :], best[1]]
     worse = [[o if i % 2 else "fn" for i, o in enumerate(run)] for run in best]
     rows = [
         _run_row(p, d, run + 1, outcomes[run])
