@@ -8,7 +8,8 @@ pipeline, descriptor) keyed by every parameter and the code version, so an inter
 Each invocation writes results/<timestamp>/ (results.json: the contract; details.json: per-run details for
 `atr report`; config.json: the effective configuration) and points results/latest at it.
 
-Pipelines: gftt-sfm, surf-sfm (the paper's SfM 3D ATR), lidar (3D LIDAR ATR), 2d-1 .. 2d-4 (Table IV pairs).
+Pipelines: gftt-sfm, surf-sfm (the paper's SfM 3D ATR), sgm-sfm (ours: dense semi-global matching of the
+pair rectified with the known pose), lidar (3D LIDAR ATR), 2d-1 .. 2d-4 (Table IV pairs).
 
 Examples:
     atr eval --scenario 1 --run 3 --frames 5 --pipeline gftt-sfm --pipeline lidar --descriptor shot
@@ -60,7 +61,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--pipeline",
         action="append",
-        help="gftt-sfm, surf-sfm, lidar, 2d-1..2d-4 (repeatable; default gftt-sfm)",
+        help="gftt-sfm, surf-sfm, sgm-sfm, lidar, 2d-1..2d-4 (repeatable; default gftt-sfm)",
     )
     parser.add_argument(
         "--descriptor",

@@ -27,10 +27,11 @@ from typing import Any
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-PIPELINE_ORDER = ("gftt-sfm", "surf-sfm", "lidar", "2d-1", "2d-2", "2d-3", "2d-4")
+PIPELINE_ORDER = ("gftt-sfm", "surf-sfm", "sgm-sfm", "lidar", "2d-1", "2d-2", "2d-3", "2d-4")
 NAMES = {
     "gftt-sfm": "SfM GFTT",
     "surf-sfm": "SfM SURF",
+    "sgm-sfm": "SfM dense (SGM, ours)",
     "lidar": "LIDAR",
     "2d-1": "2D #1 GFTT+FREAK",
     "2d-2": "2D #2 SURF",
@@ -406,7 +407,7 @@ def _differences_section(
         return []
     reference = best[0]
     others = [a for a in sorted(overall, key=_arm_sort) if a.startswith("gftt-sfm/")]
-    for prefix in ("surf-sfm/", "lidar/", "2d-"):
+    for prefix in ("surf-sfm/", "sgm-sfm/", "lidar/", "2d-"):
         family_best = _best(overall, prefix)
         if family_best is not None:
             others.append(family_best[0])
@@ -564,16 +565,20 @@ def build_report(
         for fam, prefix in (
             ("gftt-sfm", "gftt-sfm/"),
             ("surf-sfm", "surf-sfm/"),
+            ("sgm-sfm", "sgm-sfm/"),
             ("lidar", "lidar/"),
             ("2d", "2d-"),
         ):
-            paper, note = PAPER_OBLIQUITY_F1[cls][fam]
+            paper, note = PAPER_OBLIQUITY_F1[cls].get(fam, (None, ""))
             best = _best(g, prefix)
+            if paper is None and best is None:
+                continue  # a method of ours the paper has no figure for, not run here
             comp_rows.append(
                 [
                     cls,
                     NAMES.get(fam, "2D (best pair)"),
-                    f"*{_pct(paper)}*" + (f" *({note})*" if note else ""),
+                    (f"*{_pct(paper)}*" if paper is not None else "– (not in the paper)")
+                    + (f" *({note})*" if note else ""),
                     f"{_pct(best[1])} ({best[0]})" if best else "not run",
                     _interval(class_outcomes[cls], best[0]) if best else "–",
                 ]

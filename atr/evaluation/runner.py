@@ -33,11 +33,11 @@ from atr.sfm import reconstruct
 from atr.sim.flight import SensorFrame, simulate_flight
 from atr.sim.scenarios import scenario as scenario_preset
 
-SFM_PIPELINES: dict[str, str] = {"gftt-sfm": "gftt", "surf-sfm": "surf"}
+SFM_PIPELINES: dict[str, str] = {"gftt-sfm": "gftt", "surf-sfm": "surf", "sgm-sfm": "sgm"}
 """SfM pipelines and their `sfm.matcher`."""
 
-PIPELINES: tuple[str, ...] = ("gftt-sfm", "surf-sfm", "lidar", *PAIRS)
-"""Every pipeline `atr eval` knows: two SfM variants, the LIDAR baseline, the four 2D pairs."""
+PIPELINES: tuple[str, ...] = ("gftt-sfm", "surf-sfm", "sgm-sfm", "lidar", *PAIRS)
+"""Every pipeline `atr eval` knows: three SfM variants, the LIDAR baseline, the four 2D pairs."""
 
 DEFAULT_TARGET = "t72"
 

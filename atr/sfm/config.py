@@ -8,7 +8,7 @@ from typing import Literal
 
 from atr.errors import ConfigError
 
-Matcher = Literal["gftt", "surf"]
+Matcher = Literal["gftt", "surf", "sgm"]
 
 
 @dataclass(frozen=True)
@@ -20,7 +20,8 @@ class SfmConfig:
     """
 
     matcher: Matcher = "gftt"
-    """Correspondence scheme: "gftt" = GFTT corners tracked by KLT, "surf" = SURF + NNDR (§II-B-1)."""
+    """Correspondence scheme: "gftt" = GFTT corners tracked by KLT, "surf" = SURF + NNDR (§II-B-1), "sgm" =
+    dense semi-global matching of the pair rectified with the known pose (ours, atr.sfm.dense)."""
 
     # --- GFTT (Shi-Tomasi corners), §II-B-1 ---
     gftt_min_quality: float = 1e-3
@@ -87,6 +88,31 @@ class SfmConfig:
     epipolar line, which the known pose gives, and the reverse (ours; the paper compares with all of b:
     False). Tuning F1 at 2e-4, best descriptor: 0.35 -> 0.49 (docs/sfm.md, "SURF for recognition")."""
 
+    # --- Dense semi-global matching (ours, not the paper's; docs/sfm.md "Dense matching") ---
+    sgm_scale: float = 0.5
+    """The rectified images are matched at this scale: half size matches in ~35 ms what full size does in
+    ~150 ms, and the matcher subsamples the cloud at 0.3 m anyway (docs/sfm.md)."""
+    sgm_step_px: int = 2
+    """Every this-many-th pixel of the scaled disparity image, in rows and columns, becomes a point."""
+    sgm_disparities_px: int = 384
+    """Disparities searched, in full-size pixels (rounded up to OpenCV's multiple of 16 after scaling). A
+    point at depth z has disparity f * baseline / z: with the simulator's baseline (7.5 % of the range) and
+    f = 2000 px, 384 covers everything beyond 0.4 x the target range. Nearer foreground is not matched."""
+    sgm_block_px: int = 5
+    """Matching block side (px, odd); OpenCV's documented 3-11 range, small for a small target."""
+    sgm_uniqueness_percent: int = 10
+    """The best disparity's cost must beat the second best by this margin (%); OpenCV advises 5-15."""
+    sgm_left_right_px: int = 1
+    """Left-right check: a disparity is kept when matching the other way lands within this (scaled px);
+    the dense form of KLT's forward-backward check (§II-B-1 with [24])."""
+    sgm_min_texture_grey: float = 2.0
+    """A pixel is matched only where the grey levels of its block vary by at least this standard
+    deviation in both images (8-bit levels): flat regions get a disparity by smoothing alone."""
+    sgm_speckle_window_px: int = 50
+    """Disparity blobs smaller than this (px) are removed as speckle; OpenCV advises 50-200."""
+    sgm_max_rectifying_rotation_deg: float = 45.0
+    """Rectification turns each camera until its axis is square to the baseline. Beyond this the image is
+    stretched into uselessness (motion along the view axis; the epipole is in the image): empty cloud."""
     # --- Triangulation with the known (IMU) relative pose ---
     pixel_sigma_px: float = 0.5
     """1-sigma localisation noise of a correspondence (px); propagates into SfmCloud.sigma_m.
@@ -110,11 +136,11 @@ class SfmConfig:
     gaps trade points for accuracy (measured table in docs/sfm.md)."""
 
     def __post_init__(self) -> None:
-        if self.matcher not in ("gftt", "surf"):
-            raise ConfigError(f"matcher {self.matcher!r} must be 'gftt' or 'surf'")
+        if self.matcher not in ("gftt", "surf", "sgm"):
+            raise ConfigError(f"matcher {self.matcher!r} must be 'gftt', 'surf' or 'sgm'")
         if not 0.0 < self.gftt_min_quality < 1.0:
             raise ConfigError(f"gftt_min_quality {self.gftt_min_quality} must be in (0, 1)")
-        for name in ("gftt_filter_size_px", "gftt_block_size_px", "klt_window_px"):
+        for name in ("gftt_filter_size_px", "gftt_block_size_px", "klt_window_px", "sgm_block_px"):
             value = getattr(self, name)
             if value < 1 or value % 2 == 0:
                 raise ConfigError(f"{name} {value} must be an odd integer >= 1")
@@ -140,6 +166,18 @@ class SfmConfig:
         _at_least(self, "surf_duplicate_scale_ratio", 1.0)
         if not 0.0 < self.surf_nndr <= 1.0:
             raise ConfigError(f"surf_nndr {self.surf_nndr} must be in (0, 1]")
+        if not 0.0 < self.sgm_scale <= 1.0:
+            raise ConfigError(f"sgm_scale {self.sgm_scale} must be in (0, 1]")
+        _at_least(self, "sgm_step_px", 1)
+        _at_least(self, "sgm_disparities_px", 16)
+        _at_least(self, "sgm_uniqueness_percent", 0)
+        _at_least(self, "sgm_speckle_window_px", 0)
+        _at_least(self, "sgm_left_right_px", 1)
+        _at_least(self, "sgm_min_texture_grey", 0.0)
+        if not 0.0 < self.sgm_max_rectifying_rotation_deg < 90.0:
+            raise ConfigError(
+                f"sgm_max_rectifying_rotation_deg {self.sgm_max_rectifying_rotation_deg} must be in (0, 90)"
+            )
         _positive(self, "pixel_sigma_px")
         _positive(self, "k_max_reprojection")
         if not 0.0 <= self.min_parallax_deg < 90.0:

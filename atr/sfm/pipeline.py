@@ -13,6 +13,7 @@ from atr.sfm.correspondences import (
     gftt_klt_with_stats,
     surf_with_stats,
 )
+from atr.sfm.dense import sgm_correspondences
 from atr.sfm.triangulation import (
     SfmCloud,
     epipolar_distances_px,
@@ -74,7 +75,14 @@ def reconstruct(
         )
 
     start = time.perf_counter()
-    if config.matcher == "surf":
+    if config.matcher == "sgm":
+        pixels_a, pixels_b, stats, reason = sgm_correspondences(
+            gray_a, gray_b, K, dist, T_wa, T_wb, config
+        )
+        if reason:
+            return SfmCloud.empty(reason, dict(stats))
+        dist = None  # rectification undistorted the images: the pixels are ideal ones
+    elif config.matcher == "surf":
         pixels_a, pixels_b, stats = surf_with_stats(
             gray_a,
             gray_b,
@@ -95,6 +103,8 @@ def reconstruct(
     all_stats["time_correspondences_s"] = matched - start
     if stats["keypoints"] == 0:
         return SfmCloud.empty("no keypoints in image_a (black or featureless image?)", all_stats)
+    if config.matcher == "sgm" and stats["tracked"] == 0:
+        return SfmCloud.empty("no pixel with a valid disparity (featureless pair?)", all_stats)
 
     if dist is not None:
         pixels_a, pixels_b = (

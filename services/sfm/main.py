@@ -1,7 +1,9 @@
 """sfm: two frames and the IMU's relative pose -> a sparse 3D cloud of the scene, in the world frame.
 
 The paper's SfM module (§II-B-1) with a known pose: keypoints of frame t (GFTT+KLT or SURF+NNDR) are matched in
-frame t + gap and triangulated with the camera poses from pose_integrator (no essential matrix). One PointCloud
+frame t + gap and triangulated with the camera poses from pose_integrator (no essential matrix); or, with
+`sfm.matcher=sgm` (ours), every textured pixel is matched by semi-global matching of the pair rectified with
+those poses, a dense cloud. One PointCloud
 per camera frame, stamped with that frame's stamp_ns: the cloud of the pair (k - gap, k), or an empty cloud
 with a `note` while no pair exists yet — so every frame gets exactly one answer downstream.
 

@@ -47,7 +47,12 @@ def test_correspondences_follow_the_plane_homography(pair, plane_scene, matcher:
     assert np.mean(err < 2.0) > (0.99 if matcher == "gftt" else 0.9)
 
 
-@pytest.mark.parametrize("matcher", ["gftt", "surf"])
+# Median height error on the plane, 50 m range, 4 m baseline (0.9 m of depth per pixel of disparity):
+# KLT and SURF localise to ~0.1 px; semi-global matching at half size to ~0.3 px of the full image.
+PLANE_MEDIAN_M = {"gftt": 0.15, "surf": 0.15, "sgm": 0.35}
+
+
+@pytest.mark.parametrize("matcher", ["gftt", "surf", "sgm"])
 def test_reconstructed_points_lie_on_the_plane(pair, plane_scene, matcher: str) -> None:
     T_a, T_b = pair
     img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
@@ -55,7 +60,7 @@ def test_reconstructed_points_lie_on_the_plane(pair, plane_scene, matcher: str) 
     assert cloud.reason == ""
     z = cloud.points_world_m[:, 2]
     assert len(cloud) > (1000 if matcher == "gftt" else 100)
-    assert np.median(np.abs(z)) < 0.15  # 50 m range, 4 m baseline
+    assert np.median(np.abs(z)) < PLANE_MEDIAN_M[matcher]
     # The predicted sigma is honest: errors beyond 4 sigma are rare.
     assert np.mean(np.abs(z) > 4 * cloud.sigma_m) < 0.05
     assert cloud.stats["triangulated"] == len(cloud)
@@ -77,7 +82,7 @@ def through_lens(image: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarr
     return cv2.remap(image, pinhole.astype(np.float32), None, cv2.INTER_LINEAR)
 
 
-@pytest.mark.parametrize("matcher", ["gftt", "surf"])
+@pytest.mark.parametrize("matcher", ["gftt", "surf", "sgm"])
 def test_a_distorted_lens_is_corrected_before_triangulation(
     pair, plane_scene, matcher: str
 ) -> None:
@@ -89,7 +94,7 @@ def test_a_distorted_lens_is_corrected_before_triangulation(
     corrected = reconstruct(img_a, img_b, K, T_a, T_b, config, dist_coeffs=BARREL)
     ignored = reconstruct(img_a, img_b, K, T_a, T_b, config)
     assert len(corrected) > (1000 if matcher == "gftt" else 100)
-    assert np.median(np.abs(corrected.points_world_m[:, 2])) < 0.15  # as with a pinhole
+    assert np.median(np.abs(corrected.points_world_m[:, 2])) < PLANE_MEDIAN_M[matcher]  # as pinhole
     # Treating the lens as a pinhole bends the plane: the same tracks land 0.7-1.4 m off it.
     assert np.median(np.abs(ignored.points_world_m[:, 2])) > 0.3
     # No distortion given, or all zeros, is the pinhole path itself.
@@ -100,14 +105,14 @@ def test_a_distorted_lens_is_corrected_before_triangulation(
 def test_reconstruct_is_deterministic(pair, plane_scene) -> None:
     T_a, T_b = pair
     img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
-    for matcher in ("gftt", "surf"):
+    for matcher in ("gftt", "surf", "sgm"):
         one = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SfmConfig(matcher=matcher))
         two = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SfmConfig(matcher=matcher))
         assert one.points_world_m.tobytes() == two.points_world_m.tobytes()
         assert one.sigma_m.tobytes() == two.sigma_m.tobytes()
 
 
-@pytest.mark.parametrize("matcher", ["gftt", "surf"])
+@pytest.mark.parametrize("matcher", ["gftt", "surf", "sgm"])
 @pytest.mark.parametrize("fill", [0, 128])
 def test_black_or_featureless_image_gives_empty_cloud(
     pair, plane_scene, matcher: str, fill: int

@@ -52,12 +52,12 @@ def flight(request):
     return request.param, world, frames[0], frames[gap], bound
 
 
-@pytest.mark.parametrize("matcher", ["gftt", "surf"])
+@pytest.mark.parametrize("matcher", ["gftt", "surf", "sgm"])
 def test_points_lie_on_the_true_surface(flight, matcher: str) -> None:
     range_m, world, frame_a, frame_b, bound = flight
     cloud = reconstruct_pair(frame_a, frame_b, SfmConfig(matcher=matcher))
     assert cloud.reason == ""
-    assert len(cloud) >= (1000 if matcher == "gftt" else 20), cloud.stats
+    assert len(cloud) >= {"gftt": 1000, "surf": 20, "sgm": 10000}[matcher], cloud.stats
     distance = surface_distance(world, cloud.points_world_m)
     assert np.median(distance) < bound, (range_m, matcher, np.median(distance))
     # Points are in front of the camera and at about the scenario's range.

@@ -1,0 +1,187 @@
+"""Dense two-view correspondences with the known relative pose: rectification and semi-global matching.
+
+Not the paper's scheme (§II-B-1 tracks sparse GFTT corners or matches SURF blobs); ours, for the scenes the
+sparse schemes leave with too few points on the target (docs/sfm.md, "Dense matching"). The IMU gives the
+relative pose, so both images can be rectified (OpenCV's stereoRectify: corresponding points then lie on the
+same row) and matched for every pixel along that row with Hirschmüller's semi-global matching (OpenCV's
+StereoSGBM). Each valid disparity is a correspondence, mapped back to the pixels of the original images and
+triangulated like the sparse ones, so the gates and the per-point sigma stay the same.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from atr.sfm.config import SfmConfig
+from atr.sfm.triangulation import relative_camera_pose
+
+
+def sgm_correspondences(
+    gray_a: np.ndarray,
+    gray_b: np.ndarray,
+    K: np.ndarray,
+    dist_coeffs: np.ndarray | None,
+    T_world_cam_a: np.ndarray,
+    T_world_cam_b: np.ndarray,
+    config: SfmConfig,
+) -> tuple[np.ndarray, np.ndarray, dict[str, int], str]:
+    """Correspondences of a pixel grid of image a in image b, from the disparity of the rectified pair.
+
+    Args:
+        gray_a: (H, W) uint8 image at frame t.
+        gray_b: (H, W) uint8 image at frame t + gap.
+        K: (3, 3) camera matrix.
+        dist_coeffs: the lens's distortion coefficients or None; rectification undistorts.
+        T_world_cam_a: (4, 4) world-from-camera at frame t (OpenCV axes).
+        T_world_cam_b: (4, 4) world-from-camera at frame t + gap.
+        config: the sgm_* settings.
+
+    Returns:
+        (pixels_a, pixels_b, stats, reason): (N, 2) float64 undistorted pixels in each image (so they are
+        triangulated without undistortion), counters "keypoints" (grid pixels matched) and "tracked" (with a
+        valid disparity), and an empty reason, or a reason and no pixels when the motion cannot be rectified
+        (the baseline too close to the optical axis: the epipole lies in or near the image).
+
+    """
+    h, w = gray_a.shape
+    T_ba = relative_camera_pose(T_world_cam_a, T_world_cam_b)
+    R_ba, t_ba = T_ba[:3, :3], T_ba[:3, 3]
+    stats = {"keypoints": 0, "tracked": 0}
+    rotation_deg = _rectifying_rotation_deg(R_ba, t_ba)
+    if rotation_deg > config.sgm_max_rectifying_rotation_deg:
+        reason = (
+            f"baseline {90.0 - rotation_deg:.1f} deg from the optical axis: rectifying would turn a camera "
+            f"by {rotation_deg:.1f} deg > sgm_max_rectifying_rotation_deg "
+            f"{config.sgm_max_rectifying_rotation_deg} (forward motion)"
+        )
+        return _no_pixels() + (stats, reason)
+
+    dist = np.zeros(5) if dist_coeffs is None else np.asarray(dist_coeffs, np.float64)
+    R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(
+        K, dist, K, dist, (w, h), R_ba, t_ba.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY
+    )
+    block = config.sgm_block_px
+    rect_a, inside_a = _rectify(gray_a, K, dist, R1, P1, config.sgm_scale, block)
+    rect_b, inside_b = _rectify(gray_b, K, dist, R2, P2, config.sgm_scale, block)
+    # stereoRectify puts the baseline along x or, for mostly vertical motion, along y; semi-global
+    # matching searches along rows, so a vertical pair is matched transposed.
+    vertical = abs(P2[1, 3]) > abs(P2[0, 3])
+    axis = 1 if vertical else 0
+    if vertical:
+        rect_a, rect_b = rect_a.T.copy(), rect_b.T.copy()
+        inside_a, inside_b = inside_a.T.copy(), inside_b.T.copy()
+    # The matcher's left image is the one whose points lie further along the baseline axis.
+    b_is_left = P2[axis, 3] > 0
+    left, right = (rect_b, rect_a) if b_is_left else (rect_a, rect_b)
+    inside_left, inside_right = (inside_b, inside_a) if b_is_left else (inside_a, inside_b)
+
+    scaled_disparities = int(np.ceil(config.sgm_disparities_px * config.sgm_scale / 16.0)) * 16
+    sgm = cv2.StereoSGBM_create(
+        minDisparity=0,
+        numDisparities=scaled_disparities,
+        blockSize=block,
+        # OpenCV's documented smoothness penalties for one channel: 8 and 32 x the block area
+        P1=8 * block * block,
+        P2=32 * block * block,
+        uniquenessRatio=config.sgm_uniqueness_percent,
+        speckleWindowSize=config.sgm_speckle_window_px,
+        speckleRange=2,
+        disp12MaxDiff=config.sgm_left_right_px,
+        mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
+    )
+    # The matcher leaves the left image's first numDisparities columns unmatched (their partners would
+    # lie left of the right image); padding both images by as many columns keeps the whole image.
+    pad = ((0, 0), (scaled_disparities, 0))
+    disparity = sgm.compute(np.pad(left, pad), np.pad(right, pad))[:, scaled_disparities:]
+    disparity = disparity.astype(np.float32) / 16.0  # fixed point, 4 fractional bits
+
+    step = config.sgm_step_px
+    rows, cols = np.mgrid[0 : disparity.shape[0] : step, 0 : disparity.shape[1] : step]
+    d = disparity[rows, cols]
+    valid = d > 0.0  # invalid pixels are marked below minDisparity
+    # Semi-global matching fills flat regions (sky, a black frame) from their borders; a point needs
+    # texture in both images, as a corner does.
+    texture_left = _local_std(left, block)
+    texture_right = _local_std(right, block)
+    right_cols = np.clip(np.rint(cols - d).astype(np.int64), 0, right.shape[1] - 1)
+    valid &= texture_left[rows, cols] >= config.sgm_min_texture_grey
+    valid &= texture_right[rows, right_cols] >= config.sgm_min_texture_grey
+    valid &= inside_left[rows, cols] & inside_right[rows, right_cols]
+    stats["keypoints"] = int(d.size)
+    stats["tracked"] = int(np.count_nonzero(valid))
+    s = config.sgm_scale
+    # pixel centres of the scaled image back in the rectified full-size image
+    x_left = (cols[valid] + 0.5) / s - 0.5
+    y = (rows[valid] + 0.5) / s - 0.5
+    x_right = x_left - d[valid] / s
+    in_left, in_right = np.c_[x_left, y], np.c_[x_right, y]
+    if vertical:
+        in_left, in_right = in_left[:, ::-1], in_right[:, ::-1]
+    rect_pixels_a, rect_pixels_b = (in_right, in_left) if b_is_left else (in_left, in_right)
+    return (
+        _unrectify(rect_pixels_a, K, R1, P1),
+        _unrectify(rect_pixels_b, K, R2, P2),
+        stats,
+        "",
+    )
+
+
+def _local_std(gray: np.ndarray, block: int) -> np.ndarray:
+    """Standard deviation of the grey levels in a block x block window around each pixel."""
+    g = gray.astype(np.float32)
+    mean = cv2.boxFilter(g, -1, (block, block))
+    mean_sq = cv2.boxFilter(g * g, -1, (block, block))
+    return np.sqrt(np.maximum(mean_sq - mean * mean, 0.0))
+
+
+def _rectifying_rotation_deg(R_ba: np.ndarray, t_ba: np.ndarray) -> float:
+    """The larger angle by which rectification turns either camera: 90 deg minus the baseline's angle
+    to that camera's optical axis.
+    """
+    baseline_in_a = -R_ba.T @ t_ba  # camera b's centre in camera a's frame
+    baseline_in_b = t_ba  # camera a's centre in camera b's frame
+    worst = 0.0
+    for v in (baseline_in_a, baseline_in_b):
+        cos_axis = abs(v[2]) / max(float(np.linalg.norm(v)), 1e-300)
+        worst = max(worst, 90.0 - float(np.degrees(np.arccos(np.clip(cos_axis, 0.0, 1.0)))))
+    return worst
+
+
+def _rectify(
+    gray: np.ndarray,
+    K: np.ndarray,
+    dist: np.ndarray,
+    R: np.ndarray,
+    P: np.ndarray,
+    scale: float,
+    block: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The rectified image at the matching scale, and where it holds image content (not the border
+    the rectifying rotation leaves, whose edge would pass for texture).
+    """
+    h, w = gray.shape
+    map_x, map_y = cv2.initUndistortRectifyMap(K, dist, R, P, (w, h), cv2.CV_32FC1)
+    rectified = cv2.remap(gray, map_x, map_y, cv2.INTER_LINEAR)
+    inside = (map_x >= 0) & (map_x <= w - 1) & (map_y >= 0) & (map_y <= h - 1)
+    if scale != 1.0:
+        rectified = cv2.resize(rectified, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+        inside = cv2.resize(
+            inside.astype(np.uint8), rectified.shape[::-1], interpolation=cv2.INTER_AREA
+        )
+        inside = inside == 1  # every full-size pixel under the scaled one is inside
+    # a matching block touching the border sees its edge: keep a margin wider than the block
+    margin = np.ones((2 * block + 1, 2 * block + 1), np.uint8)
+    return rectified, cv2.erode(inside.astype(np.uint8), margin) == 1
+
+
+def _unrectify(pixels: np.ndarray, K: np.ndarray, R: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Rectified pixels back to (undistorted) pixels of the original camera: K R^T P[:, :3]^-1."""
+    if len(pixels) == 0:
+        return np.zeros((0, 2))
+    H = K @ R.T @ np.linalg.inv(P[:, :3])
+    return cv2.perspectiveTransform(pixels.reshape(-1, 1, 2).astype(np.float64), H).reshape(-1, 2)
+
+
+def _no_pixels() -> tuple[np.ndarray, np.ndarray]:
+    return np.zeros((0, 2)), np.zeros((0, 2))
