@@ -390,14 +390,22 @@ def main() -> int:
     rs = sub.add_parser("resfm")
     rs.add_argument("--from", dest="source_cache", type=Path, required=True)
     rs.add_argument("--cache", type=Path, required=True)
-    rs.add_argument("--set", nargs="*", default=[], help="SfmConfig overrides field=value")
+    rs.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="SfmConfig overrides field=value"
+    )
     rs.add_argument("--shard", type=int, nargs=2, default=None, metavar=("I", "N"))
     ev = sub.add_parser("eval")
     ev.add_argument("--cache", type=Path, default=DEFAULT_CACHE)
     ev.add_argument("--descriptor", default="shot")
     ev.add_argument("--source", choices=("sfm", "lidar"), default="sfm")
     ev.add_argument("--scenario", type=int, nargs="+", default=[1, 2, 3])
-    ev.add_argument("--set", nargs="*", default=[], help="RecognitionConfig overrides field=value")
+    ev.add_argument(
+        "--set",
+        nargs="*",
+        action="extend",
+        default=[],
+        help="RecognitionConfig overrides field=value",
+    )
     ev.add_argument("--limit", type=int, default=0)
     ev.add_argument("--verbose", action="store_true")
     ev.add_argument("--json", default="")

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from atr.sfm.config import SfmConfig
-from atr.sfm.triangulation import relative_camera_pose
+from atr.sfm.triangulation import fixation_depth_m, relative_camera_pose
 
 
 def sgm_correspondences(
@@ -25,7 +25,7 @@ def sgm_correspondences(
     T_world_cam_a: np.ndarray,
     T_world_cam_b: np.ndarray,
     config: SfmConfig,
-) -> tuple[np.ndarray, np.ndarray, dict[str, int], str]:
+) -> tuple[np.ndarray, np.ndarray, dict[str, int | float], str]:
     """Correspondences of a pixel grid of image a in image b, from the disparity of the rectified pair.
 
     Args:
@@ -40,14 +40,15 @@ def sgm_correspondences(
     Returns:
         (pixels_a, pixels_b, stats, reason): (N, 2) float64 undistorted pixels in each image (so they are
         triangulated without undistortion), counters "keypoints" (grid pixels matched) and "tracked" (with a
-        valid disparity), and an empty reason, or a reason and no pixels when the motion cannot be rectified
-        (the baseline too close to the optical axis: the epipole lies in or near the image).
+        valid disparity) and the matching "scale", and an empty reason; or a reason and no pixels when the
+        motion cannot be rectified (the baseline too close to the optical axis: the epipole lies in or near
+        the image).
 
     """
     h, w = gray_a.shape
     T_ba = relative_camera_pose(T_world_cam_a, T_world_cam_b)
     R_ba, t_ba = T_ba[:3, :3], T_ba[:3, 3]
-    stats = {"keypoints": 0, "tracked": 0}
+    stats: dict[str, int | float] = {"keypoints": 0, "tracked": 0}
     rotation_deg = _rectifying_rotation_deg(R_ba, t_ba)
     if rotation_deg > config.sgm_max_rectifying_rotation_deg:
         reason = (
@@ -55,15 +56,17 @@ def sgm_correspondences(
             f"by {rotation_deg:.1f} deg > sgm_max_rectifying_rotation_deg "
             f"{config.sgm_max_rectifying_rotation_deg} (forward motion)"
         )
-        return _no_pixels() + (stats, reason)
+        return np.zeros((0, 2)), np.zeros((0, 2)), stats, reason
 
     dist = np.zeros(5) if dist_coeffs is None else np.asarray(dist_coeffs, np.float64)
     R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(
         K, dist, K, dist, (w, h), R_ba, t_ba.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY
     )
     block = config.sgm_block_px
-    rect_a, inside_a = _rectify(gray_a, K, dist, R1, P1, config.sgm_scale, block)
-    rect_b, inside_b = _rectify(gray_b, K, dist, R2, P2, config.sgm_scale, block)
+    s = matching_scale(K, T_world_cam_a, T_world_cam_b, config)
+    stats["scale"] = s
+    rect_a, inside_a = _rectify(gray_a, K, dist, R1, P1, s, block)
+    rect_b, inside_b = _rectify(gray_b, K, dist, R2, P2, s, block)
     # stereoRectify puts the baseline along x or, for mostly vertical motion, along y; semi-global
     # matching searches along rows, so a vertical pair is matched transposed.
     vertical = abs(P2[1, 3]) > abs(P2[0, 3])
@@ -76,7 +79,7 @@ def sgm_correspondences(
     left, right = (rect_b, rect_a) if b_is_left else (rect_a, rect_b)
     inside_left, inside_right = (inside_b, inside_a) if b_is_left else (inside_a, inside_b)
 
-    scaled_disparities = int(np.ceil(config.sgm_disparities_px * config.sgm_scale / 16.0)) * 16
+    scaled_disparities = int(np.ceil(config.sgm_disparities_px * s / 16.0)) * 16
     sgm = cv2.StereoSGBM_create(
         minDisparity=0,
         numDisparities=scaled_disparities,
@@ -110,7 +113,6 @@ def sgm_correspondences(
     valid &= inside_left[rows, cols] & inside_right[rows, right_cols]
     stats["keypoints"] = int(d.size)
     stats["tracked"] = int(np.count_nonzero(valid))
-    s = config.sgm_scale
     # pixel centres of the scaled image back in the rectified full-size image
     x_left = (cols[valid] + 0.5) / s - 0.5
     y = (rows[valid] + 0.5) / s - 0.5
@@ -125,6 +127,24 @@ def sgm_correspondences(
         stats,
         "",
     )
+
+
+def matching_scale(
+    K: np.ndarray, T_world_cam_a: np.ndarray, T_world_cam_b: np.ndarray, config: SfmConfig
+) -> float:
+    """The scale at which the rectified pair is matched.
+
+    One pixel of the scaled image spans ``sgm_pixel_footprint_m`` at the depth the two optical axes
+    converge on; rounded to a multiple of ``sgm_scale_step``, at least one step and at most full size.
+    ``sgm_scale`` when the footprint is None or the axes do not converge.
+    """
+    depth_m = fixation_depth_m(T_world_cam_a, T_world_cam_b)
+    if config.sgm_pixel_footprint_m is None or depth_m is None:
+        return config.sgm_scale
+    focal_px = 0.5 * (K[0, 0] + K[1, 1])
+    step = config.sgm_scale_step
+    steps = round(depth_m / (focal_px * config.sgm_pixel_footprint_m) / step)
+    return float(min(max(steps, 1) * step, 1.0))
 
 
 def _local_std(gray: np.ndarray, block: int) -> np.ndarray:
@@ -181,7 +201,3 @@ def _unrectify(pixels: np.ndarray, K: np.ndarray, R: np.ndarray, P: np.ndarray) 
         return np.zeros((0, 2))
     H = K @ R.T @ np.linalg.inv(P[:, :3])
     return cv2.perspectiveTransform(pixels.reshape(-1, 1, 2).astype(np.float64), H).reshape(-1, 2)
-
-
-def _no_pixels() -> tuple[np.ndarray, np.ndarray]:
-    return np.zeros((0, 2)), np.zeros((0, 2))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -9,7 +11,9 @@ from atr.sfm import SfmConfig, reconstruct
 from atr.sfm.correspondences import as_gray_u8
 from atr.sfm.dense import sgm_correspondences
 
-SGM = SfmConfig(matcher="sgm")
+# Half size for every pair, as these tests' thresholds were set; the scale chosen from the range has
+# its own test below.
+SGM = SfmConfig(matcher="sgm", sgm_pixel_footprint_m=None)
 
 
 def true_pixel_in_b(scene, pixels_a, T_a, T_b) -> np.ndarray:
@@ -90,13 +94,51 @@ def test_a_coarser_grid_gives_fewer_points_of_the_same_surface(geo, plane_scene)
     T_b = oblique_pose(geo, np.array([4.0, 0.5, 50.3]), yaw_rad=0.03)
     img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
     fine = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM)
-    coarse = reconstruct(
-        img_a, img_b, plane_scene.K, T_a, T_b, SfmConfig(matcher="sgm", sgm_step_px=4)
-    )
+    coarse = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, replace(SGM, sgm_step_px=4))
     assert 3.0 < len(fine) / len(coarse) < 5.0  # a 4 x sparser grid
-    full_size = reconstruct(
-        img_a, img_b, plane_scene.K, T_a, T_b, SfmConfig(matcher="sgm", sgm_scale=1.0)
-    )
+    full_size = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, replace(SGM, sgm_scale=1.0))
     assert len(full_size) > 3.0 * len(fine)
     for cloud in (coarse, full_size):
         assert np.median(np.abs(cloud.points_world_m[:, 2])) < 0.35  # ~0.3 px at 0.9 m/px
+
+
+def looking_at(geo, centre: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """World-from-camera pose (OpenCV axes) of a camera at centre whose optical axis passes through target."""
+    z = (target - centre) / np.linalg.norm(target - centre)
+    x = np.cross(z, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x)
+    return geo.pose(np.c_[x, np.cross(z, x), z], centre)
+
+
+@pytest.mark.parametrize(("depth_m", "scale"), [(17.5, 0.25), (35.0, 0.5), (70.0, 1.0)])
+def test_the_matching_scale_keeps_the_pixel_footprint_at_the_fixation_depth(
+    geo, plane_scene, depth_m: float, scale: float
+) -> None:
+    # an orbit-like pair 60 deg above the horizon, both axes through the origin at depth_m
+    up, back = depth_m * np.sin(np.deg2rad(60.0)), depth_m * np.cos(np.deg2rad(60.0))
+    centre_a = np.array([0.0, -back, up])
+    T_a = looking_at(geo, centre_a, np.zeros(3))
+    T_b = looking_at(geo, centre_a + [0.075 * depth_m, 0.0, 0.0], np.zeros(3))
+    gray_a = as_gray_u8(plane_scene.render(T_a), "a")
+    gray_b = as_gray_u8(plane_scene.render(T_b), "b")
+    config = SfmConfig(matcher="sgm")  # one pixel spans sgm_pixel_footprint_m = 0.1 m; f = 700 px
+    pa, pb, stats, reason = sgm_correspondences(
+        gray_a, gray_b, plane_scene.K, None, T_a, T_b, config
+    )
+    assert reason == ""
+    assert stats["scale"] == scale
+    w, h = plane_scene.size
+    assert stats["keypoints"] == np.ceil(w * scale / 2) * np.ceil(h * scale / 2)
+    assert len(pa) > 0.5 * stats["keypoints"]
+    err = np.linalg.norm(pb - true_pixel_in_b(plane_scene, pa, T_a, T_b), axis=1)
+    assert np.median(err) < 0.5 / scale, np.median(err)  # ~0.3 px of the scaled image
+
+    # without a fixation depth (parallel axes), or with the footprint unset: sgm_scale
+    T_b_parallel = geo.pose(T_a[:3, :3], centre_a + [0.075 * depth_m, 0.0, 0.0])
+    gray_b_parallel = as_gray_u8(plane_scene.render(T_b_parallel), "b")
+    for T_b_, gray_b_, config_ in (
+        (T_b_parallel, gray_b_parallel, config),
+        (T_b, gray_b, replace(config, sgm_pixel_footprint_m=None, sgm_scale=0.375)),
+    ):
+        stats_ = sgm_correspondences(gray_a, gray_b_, plane_scene.K, None, T_a, T_b_, config_)[2]
+        assert stats_["scale"] == config_.sgm_scale
