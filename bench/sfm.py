@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -24,7 +25,7 @@ from atr.sfm.correspondences import (
     match_nndr_both_ways,
     surf_with_stats,
 )
-from atr.sfm.dense import sgm_correspondences
+from atr.sfm.dense import matching_scale, sgm_correspondences
 from atr.sfm.pipeline import reconstruct
 from atr.sfm.repeatability import matching_score, repeatability
 from atr.sfm.triangulation import (
@@ -137,19 +138,31 @@ def timing(label, img_a, img_b, K, T_a, T_b, repeats: int) -> None:
         n_cap = len(reconstruct(img_a, img_b, K, T_a, T_b, capped))
         print(f"  reconstruct, gftt_max_corners={cap}: {t_cap:8.1f} ms, {n_cap} points")
 
-    # dense path: rectification + semi-global matching (ours), against the sparse pair above
-    sgm = SfmConfig(matcher="sgm")
-    t_sgm_corr = median_ms(
-        lambda: sgm_correspondences(img_a, img_b, K, None, T_a, T_b, sgm), repeats
-    )
-    pa_d, pb_d, stats_d, _ = sgm_correspondences(img_a, img_b, K, None, T_a, T_b, sgm)
-    t_sgm_tri = median_ms(lambda: triangulate_known_pose(pa_d, pb_d, K, T_a, T_b, sgm), repeats)
-    t_sgm_all = median_ms(lambda: reconstruct(img_a, img_b, K, T_a, T_b, sgm), repeats)
-    n_sgm = len(reconstruct(img_a, img_b, K, T_a, T_b, sgm))
-    print(f"SGM (dense): grid {stats_d['keypoints']}, matched {stats_d['tracked']}, points {n_sgm}")
-    print(f"  rectify + match        {t_sgm_corr:8.1f} ms")
-    print(f"  triangulation          {t_sgm_tri:8.1f} ms")
-    print(f"  reconstruct (pair)     {t_sgm_all:8.1f} ms   ({t_sgm_all / t_all:.2f} x GFTT/KLT's)")
+    # dense path: rectification + semi-global matching (ours), against the sparse pair above; at the
+    # scale this pair's range sets, and at the scales the other ranges set (quarter size at 50 m, half at
+    # 100 m, full at 200 m with the simulator's camera)
+    chosen = SfmConfig(matcher="sgm")
+    print(f"SGM (dense), scale from this pair's range: {matching_scale(K, T_a, T_b, chosen)}")
+    for scale in (0.25, 0.5, 1.0):
+        sgm = replace(chosen, sgm_pixel_footprint_m=None, sgm_scale=scale)
+        t_sgm_corr = median_ms(
+            lambda c=sgm: sgm_correspondences(img_a, img_b, K, None, T_a, T_b, c), repeats
+        )
+        pa_d, pb_d, stats_d, _ = sgm_correspondences(img_a, img_b, K, None, T_a, T_b, sgm)
+        t_sgm_tri = median_ms(
+            lambda c=sgm: triangulate_known_pose(pa_d, pb_d, K, T_a, T_b, c), repeats
+        )
+        t_sgm_all = median_ms(lambda c=sgm: reconstruct(img_a, img_b, K, T_a, T_b, c), repeats)
+        n_sgm = len(reconstruct(img_a, img_b, K, T_a, T_b, sgm))
+        print(
+            f"  scale {scale:4.2f}: grid {stats_d['keypoints']}, matched {stats_d['tracked']}, "
+            f"points {n_sgm}"
+        )
+        print(f"    rectify + match      {t_sgm_corr:8.1f} ms")
+        print(f"    triangulation        {t_sgm_tri:8.1f} ms")
+        print(
+            f"    reconstruct (pair)   {t_sgm_all:8.1f} ms   ({t_sgm_all / t_all:.2f} x GFTT/KLT's)"
+        )
 
     # SURF path (as reconstruct runs it: NNDR along the known pose's epipolar lines, both ways)
     def epipolar(pixels_a: np.ndarray, pixels_b: np.ndarray) -> np.ndarray:
