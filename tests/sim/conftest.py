@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -11,6 +14,9 @@ from atr.sim.scenarios import custom_scenario
 from atr.sim.trajectory import make_orbit
 from atr.sim.vehicles import t72
 from atr.sim.world import World
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from _poses import look_at  # noqa: E402, F401  (the sim tests import it from here)
 
 
 @pytest.fixture(scope="session")
@@ -42,17 +48,3 @@ def toy_world(static_parts: list[Mesh], cfg: SimConfig, target: Mesh | None = No
         orbit=orbit,
         occluder_width_m=0.0,
     )
-
-
-def look_at(eye, target) -> np.ndarray:
-    """World-from-camera (OpenCV axes) looking from eye at target, image x roughly horizontal."""
-    eye = np.asarray(eye, float)
-    z = np.asarray(target, float) - eye
-    z /= np.linalg.norm(z)
-    x = np.cross(z, [0.0, 0.0, 1.0])
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([x, y, z])
-    T[:3, 3] = eye
-    return T
