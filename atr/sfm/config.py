@@ -56,7 +56,8 @@ class SfmConfig:
     docs/sfm.md ("Pose-aided KLT")."""
     ground_z_m: float = 0.0
     """Height of the ground in the world (navigation) frame, metres: the take-off point's. Corners whose
-    ray meets the ground before the fixation plane are foreground and get no second pass."""
+    ray meets the ground before the fixation plane are foreground and get no second pass; the dense
+    search reaches the nearest ground the image sees (sgm_ground_margin)."""
 
     # --- SURF (Bay et al. 2008), §II-B-1 ---
     surf_octaves: int = 3
@@ -101,15 +102,22 @@ class SfmConfig:
     is 160 x 120 px), so a pair's scaled size does not wander with the range's last decimals."""
     sgm_scale: float = 0.5
     """Matching scale of a pair whose optical axes do not converge (no fixation depth), or of every pair
-    when sgm_pixel_footprint_m is None. Measured on one tuning pair: the whole dense step takes 108 ms at
-    half size against 746 ms at full size (docs/sfm.md)."""
+    when sgm_pixel_footprint_m is None. ``./dev bench sfm`` (idle): the whole dense step takes 102 ms at half
+    size against 532 ms at full size (docs/sfm.md)."""
     sgm_step_px: int = 2
     """Every this-many-th pixel of the scaled disparity image, in rows and columns, becomes a point: 0.2 m
     apart at the fixation depth with the default footprint, against the matcher's 0.3 m subsampling."""
     sgm_disparities_px: int = 384
-    """Disparities searched, in full-size pixels (rounded up to OpenCV's multiple of 16 after scaling). A
-    point at depth z has disparity f * baseline / z: with the simulator's baseline (7.5 % of the range) and
-    f = 2000 px, 384 covers everything beyond 0.4 x the target range. Nearer foreground is not matched."""
+    """Disparities searched at least, in full-size pixels (rounded up to OpenCV's multiple of 16 after
+    scaling). A point at depth z has disparity f * baseline / z: with the simulator's baseline (7.5 % of the
+    range) and f = 2000 px, 384 covers everything beyond 0.4 x the target range. The search reaches further
+    where the image sees flat ground nearer (sgm_ground_margin)."""
+    sgm_ground_margin: float = 1.25
+    """The search also covers this multiple of the largest disparity of the flat ground at ground_z_m that
+    the first image sees (at 0 deg obliquity the camera flies 4 m up and the ground at the image's foot is
+    ~15 m away), so relief and what stands on the ground near the camera are matched too. Without it such
+    pixels were matched wrongly, too far, and sank metres under the target (docs/sfm.md, "Dense
+    matching")."""
     sgm_block_px: int = 5
     """Matching block side (px, odd); OpenCV's documented 3-11 range, small for a small target."""
     sgm_uniqueness_percent: int = 10
@@ -185,6 +193,7 @@ class SfmConfig:
             _positive(self, "sgm_pixel_footprint_m")
         _at_least(self, "sgm_step_px", 1)
         _at_least(self, "sgm_disparities_px", 16)
+        _positive(self, "sgm_ground_margin")
         _at_least(self, "sgm_uniqueness_percent", 0)
         _at_least(self, "sgm_speckle_window_px", 0)
         _at_least(self, "sgm_left_right_px", 1)

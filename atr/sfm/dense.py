@@ -79,7 +79,16 @@ def sgm_correspondences(
     left, right = (rect_b, rect_a) if b_is_left else (rect_a, rect_b)
     inside_left, inside_right = (inside_b, inside_a) if b_is_left else (inside_a, inside_b)
 
-    scaled_disparities = int(np.ceil(config.sgm_disparities_px * s / 16.0)) * 16
+    # A pixel whose true disparity lies beyond the search is not left unmatched but matched wrongly, too
+    # far: at 0 deg obliquity the near ground then sinks metres below the target. So the search also
+    # reaches the nearest flat ground the image sees; no disparity exceeds the image's width.
+    search_px = max(
+        float(config.sgm_disparities_px),
+        config.sgm_ground_margin
+        * ground_disparity_px(K, dist, T_world_cam_a, R1, P2, (w, h), config.ground_z_m),
+    )
+    scaled_disparities = int(np.ceil(min(search_px * s, left.shape[1]) / 16.0)) * 16
+    stats["disparities"] = scaled_disparities
     sgm = cv2.StereoSGBM_create(
         minDisparity=0,
         numDisparities=scaled_disparities,
@@ -145,6 +154,47 @@ def matching_scale(
     step = config.sgm_scale_step
     steps = round(depth_m / (focal_px * config.sgm_pixel_footprint_m) / step)
     return float(min(max(steps, 1) * step, 1.0))
+
+
+def ground_disparity_px(
+    K: np.ndarray,
+    dist_coeffs: np.ndarray,
+    T_world_cam_a: np.ndarray,
+    R1: np.ndarray,
+    P2: np.ndarray,
+    image_size: tuple[int, int],
+    ground_z_m: float,
+) -> float:
+    """The largest disparity, in full-size rectified pixels, of the flat ground z = ``ground_z_m`` that
+    image a sees; 0 when it sees none.
+
+    The inverse depth of a plane is affine in the (undistorted) pixel, so its largest disparity over the
+    image lies at one of the image's corners.
+
+    Args:
+        K: (3, 3) camera matrix.
+        dist_coeffs: the lens's distortion coefficients.
+        T_world_cam_a: (4, 4) world-from-camera at image a (world z up).
+        R1: (3, 3) rectifying rotation of camera a (cv2.stereoRectify).
+        P2: (3, 4) rectified projection of camera b; its translation column holds f x baseline.
+        image_size: (width, height) px.
+        ground_z_m: height of the ground in the world frame, metres.
+
+    """
+    w, h = image_size
+    corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], np.float64)
+    normalised = cv2.undistortPoints(corners.reshape(-1, 1, 2), K, dist_coeffs).reshape(-1, 2)
+    rays_cam = np.c_[normalised, np.ones(4)]  # camera z = 1
+    rays_world_z = rays_cam @ T_world_cam_a[2, :3]
+    height_m = T_world_cam_a[2, 3] - ground_z_m
+    down = rays_world_z < 0.0
+    if height_m <= 0.0 or not down.any():
+        return 0.0
+    to_ground = height_m / -rays_world_z[down]  # multiples of each ray
+    depth_rect = (rays_cam[down] @ R1.T)[:, 2] * to_ground
+    focal_baseline_px = float(np.abs(P2[:2, 3]).max())
+    in_front = depth_rect > 0.0
+    return float((focal_baseline_px / depth_rect[in_front]).max()) if in_front.any() else 0.0
 
 
 def _local_std(gray: np.ndarray, block: int) -> np.ndarray:

@@ -139,3 +139,36 @@ def test_the_matching_scale_keeps_the_pixel_footprint_at_the_fixation_depth(
     ):
         stats_ = sgm_correspondences(gray_a, gray_b_, plane_scene.K, None, T_a, T_b_, config_)[2]
         assert stats_["scale"] == config_.sgm_scale
+
+
+def test_the_search_reaches_the_nearest_ground_the_image_sees(plane_scene) -> None:
+    # a camera 25 deg above the horizon, 20 m from the point it looks at: the image's foot sees the
+    # ground at ~13 m, nearer than the (deliberately short) minimum search reaches
+    distance_m = 20.0
+    centre_a = np.array([0.0, -distance_m * np.cos(0.436), distance_m * np.sin(0.436)])
+    T_a = look_at(centre_a, np.zeros(3))
+    T_b = look_at(centre_a + [0.075 * distance_m, 0.0, 0.0], np.zeros(3))
+    gray_a = as_gray_u8(plane_scene.render(T_a), "a")
+    gray_b = as_gray_u8(plane_scene.render(T_b), "b")
+    short = replace(SGM, sgm_disparities_px=16)
+    pa, pb, stats, reason = sgm_correspondences(
+        gray_a, gray_b, plane_scene.K, None, T_a, T_b, short
+    )
+    assert reason == ""
+    err = np.linalg.norm(pb - true_pixel_in_b(plane_scene, pa, T_a, T_b), axis=1)
+    assert len(pa) > 0.5 * stats["keypoints"]
+    assert np.median(err) < 0.5, np.median(err)
+    assert np.mean(err < 2.0) > 0.95
+    # the foot of the image, where the disparity is largest, is matched too
+    assert pa[:, 1].max() > 0.9 * plane_scene.size[1]
+
+    # a ground believed far below asks for no more than the minimum search: most pixels then lie
+    # beyond it, and are not left unmatched but matched wrongly
+    far_ground = replace(short, ground_z_m=-1000.0)
+    pa_, pb_, stats_, _ = sgm_correspondences(
+        gray_a, gray_b, plane_scene.K, None, T_a, T_b, far_ground
+    )
+    assert stats_["disparities"] < stats["disparities"]
+    err_ = np.linalg.norm(pb_ - true_pixel_in_b(plane_scene, pa_, T_a, T_b), axis=1)
+    assert len(pa_) > 0.5 * stats_["keypoints"]
+    assert np.sum(err_ < 2.0) < 0.5 * len(pa_)

@@ -2,9 +2,15 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from _poses import look_at  # noqa: E402
 
 from atr.errors import ConfigError, InputError
 from atr.sfm import SfmConfig, relative_camera_pose, triangulate_known_pose
@@ -164,22 +170,12 @@ def test_bad_intrinsics_and_pixels_raise(cams) -> None:
         {"pair_gap_frames": 0},
         {"klt_aided_pyramid_levels": -1},
         {"ground_z_m": float("nan")},
+        {"sgm_ground_margin": 0.0},
     ],
 )
 def test_config_refuses_bad_values(kwargs: dict) -> None:
     with pytest.raises(ConfigError, match=next(iter(kwargs))):
         SfmConfig(**kwargs)
-
-
-def look_at(centre: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """World-from-camera pose of a level camera at centre looking at target (OpenCV axes)."""
-    z = (target - centre) / np.linalg.norm(target - centre)
-    x = np.cross(z, [0.0, 0.0, 1.0])
-    x /= np.linalg.norm(x)
-    T = np.eye(4)
-    T[:3, :3] = np.c_[x, np.cross(z, x), z]
-    T[:3, 3] = centre
-    return T
 
 
 def through_lens(
