@@ -118,7 +118,8 @@ def test_the_matching_scale_keeps_the_pixel_footprint_at_the_fixation_depth(
     T_b = look_at(centre_a + [0.075 * depth_m, 0.0, 0.0], np.zeros(3))
     gray_a = as_gray_u8(plane_scene.render(T_a), "a")
     gray_b = as_gray_u8(plane_scene.render(T_b), "b")
-    config = SfmConfig(matcher="sgm")  # one pixel spans sgm_pixel_footprint_m = 0.1 m; f = 700 px
+    # one pixel spans sgm_pixel_footprint_m = 0.1 m (f = 700 px), rounded to eighths
+    config = SfmConfig(matcher="sgm", sgm_scale_step=0.125)
     pa, pb, stats, reason = sgm_correspondences(
         gray_a, gray_b, plane_scene.K, None, T_a, T_b, config
     )
