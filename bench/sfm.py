@@ -139,8 +139,8 @@ def timing(label, img_a, img_b, K, T_a, T_b, repeats: int) -> None:
         print(f"  reconstruct, gftt_max_corners={cap}: {t_cap:8.1f} ms, {n_cap} points")
 
     # dense path: rectification + semi-global matching (ours), against the sparse pair above; at the
-    # scale this pair's range sets, and at the scales the other ranges set (quarter size at 50 m, half at
-    # 100 m, full at 200 m with the simulator's camera)
+    # scale this pair's range sets, and at quarter, half and full size (with the simulator's camera the
+    # default halves give half size at 50 and 100 m and full at 200 m; eighths give quarter at 50 m)
     chosen = SfmConfig(matcher="sgm")
     print(f"SGM (dense), scale from this pair's range: {matching_scale(K, T_a, T_b, chosen)}")
     for scale in (0.25, 0.5, 1.0):
