@@ -298,9 +298,17 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
                     above_terrain[has and off_m < 2.0].append(up_m)
                 parts.append(f"{d.target}:{d.score:.0f}/{d.overlap:.2f}@{off_m:.1f}m^{up_m:+.1f}m")
             det = ", ".join(parts)
+            # the roof rule's terrain under the true T-72, and the points sunk more than 3 m under its
+            # base (docs/sfm.md, "The search reaches the ground")
+            T_true = sc["T_world_target"]
+            terrain_m = terrain_height_at(
+                *cells, T_true[:2, 3], config.terrain_window_m, config.ground_percentile
+            )[0]
+            sunk = int(np.count_nonzero(sc["points"][:, 2] < T_true[2, 3] - 3.0))
             print(
                 f"  {sc['name']:22} {s.outcome:2} pts {len(sc['points']):6d} kp {res.stats.get('keypoints', 0):5d}"
                 f" vis {sc['visible'][1]:.2f} az {m['azimuth_in_target_deg']:5.0f}"
+                f" terrain {terrain_m - T_true[2, 3]:+6.2f} m sunk {sunk:5d}"
                 f" {res.stage_times_ms['total']:6.0f} ms  [{det}]",
                 flush=True,
             )

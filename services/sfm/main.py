@@ -3,9 +3,9 @@
 The paper's SfM module (§II-B-1) with a known pose: keypoints of frame t (GFTT+KLT or SURF+NNDR) are matched in
 frame t + gap and triangulated with the camera poses from pose_integrator (no essential matrix); or, with
 `sfm.matcher=sgm` (ours), every textured pixel is matched by semi-global matching of the pair rectified with
-those poses, a dense cloud. One PointCloud
-per camera frame, stamped with that frame's stamp_ns: the cloud of the pair (k - gap, k), or an empty cloud
-with a `note` while no pair exists yet — so every frame gets exactly one answer downstream.
+those poses, a dense cloud. One PointCloud per camera frame, stamped with that frame's stamp_ns: the cloud of
+the pair (k - gap, k), or an empty cloud with a `note` while no pair exists yet — so every frame gets exactly
+one answer downstream.
 
 Example:
     atr service sfm --uav uav1 --set sfm.matcher=surf --set sfm.pair_gap_frames=2
