@@ -293,10 +293,10 @@ class RecorderNode(Node):
     recorder: Recorder | None = None
 
     def extra_status(self) -> dict[str, Any]:
-        """The recorder's counters, and messages recorded per topic as handled_by_key."""
-        if self.recorder is None:
-            return {}
-        s = self.recorder.stats
+        """The recorder's counters, and messages recorded per topic as handled_by_key; zeros
+        until the recorder is attached (its subscriber may record a heartbeat sent before that).
+        """
+        s = self.recorder.stats if self.recorder is not None else RecorderStats()
         counters = {
             "messages": s.messages,
             "bytes": s.bytes,

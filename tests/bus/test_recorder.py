@@ -13,6 +13,7 @@ import pytest
 from mcap.reader import make_reader
 
 from bus import codec, keys, mcap_tools, schemas
+from bus.recorder import RecorderNode
 from bus.session import open_session
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -68,6 +69,18 @@ def test_records_every_message_as_sent_and_closes_cleanly_on_sigterm(
     statuses = [codec.unpack(m.data) for t, _, m in records if t == "atr/uav1/recorder/status"]
     assert statuses and all({"messages", "bytes"} <= set(s["counters"]) for s in statuses)
     assert max(s["counters"]["messages"] for s in statuses) > 0
+
+
+def test_a_heartbeat_sent_before_the_recorder_is_attached_carries_its_counters(hub: str) -> None:
+    # The recorder's subscriber exists before `node.recorder` is set; a heartbeat in that gap is
+    # recorded too and must already have the recorder's counters (zeros), like every other Status.
+    with RecorderNode("recorder", "uav9", zenoh_config=peer_config(hub), heartbeat_s=60) as node:
+        assert node.recorder is None
+        extra = node.extra_status()
+    assert extra["counters"] == dict.fromkeys(
+        ("messages", "bytes", "channels", "gaps", "queue_max", "unstamped"), 0
+    )
+    assert extra["handled_by_key"] == {}
 
 
 def test_bad_input_from_a_foreign_session_is_recorded_as_it_came(hub: str, tmp_path: Path) -> None:
