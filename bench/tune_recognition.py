@@ -25,7 +25,9 @@ frame within one frame of the gap-1 pair's).
 
 ``eval`` builds the templates of the T-72 and its confusers (IFV, 6x6 truck) as the template store does,
 runs ``atr.recognition.recognize`` on every cached cloud and scores it with ``atr.evaluation.metrics``
-(§III-C: TP within 2 m of the T-72; FP a T-72 hypothesis without target or > 2 m off; FN none).
+(§III-C: TP within 2 m of the T-72; FP a T-72 hypothesis without target or > 2 m off; FN none). With
+``--verbose`` it prints every scene's detections and ends with a tally of why the others failed
+(``why_not_true_positive``).
 """
 
 from __future__ import annotations
@@ -55,6 +57,9 @@ RUNS: tuple[tuple[int, int], ...] = (
 )
 TUNING_SEEDS: tuple[int, ...] = (101, 102, 103, 104, 105)
 TARGETS: tuple[str, ...] = ("t72", "ifv", "truck6x6")
+NEAR_MISS_M = (
+    10.0  # a false T-72 fit closer than this to the target is a near miss, not a confusion
+)
 
 
 # ---------------------------------------------------------------------------------------------- make
@@ -241,6 +246,51 @@ def parse_sets(items: list[str]) -> dict:
     return out
 
 
+def why_not_true_positive(
+    outcome: str,
+    detections: list,
+    verified: list,
+    T_world_target: np.ndarray | None,
+    target: str = "t72",
+) -> str:
+    """Why a scene that has the target, or reports it, is not a true positive: the first of these
+    that holds (docs/recognition.md, "Where the dense arm's errors come from"); "" for TP and TN.
+
+    Args:
+        outcome: the scene's outcome ("tp", "fp", "fn", "tn").
+        detections: the matcher's detections, best first.
+        verified: the matcher's ``stats["verified"]``: every hypothesis ICP refined, accepted or
+            not, as (target, view, overlap, overlap vertices, clutter, x, y, z, ...).
+        T_world_target: (4, 4) pose of the target in the scene; None when it is not there.
+        target: the target's template name.
+
+    """
+    from atr.evaluation.metrics import MAX_TRANSLATION_ERROR_M
+
+    if outcome in ("tp", "tn"):
+        return ""
+    if T_world_target is None:
+        return "reported without target"
+    true_m = np.asarray(T_world_target, np.float64)[:3, 3]
+
+    def near(position_m: np.ndarray) -> bool:
+        return float(np.linalg.norm(np.asarray(position_m, np.float64) - true_m)) < (
+            MAX_TRANSLATION_ERROR_M
+        )
+
+    if outcome == "fp":
+        best = next(d for d in detections if d.target == target)
+        if np.linalg.norm(best.T_world_target[:3, 3] - true_m) < NEAR_MISS_M:
+            return "T-72 fit 2-10 m off"
+    if any(d.target == target and near(d.T_world_target[:3, 3]) for d in detections):
+        return "a true fit scores under a T-72 fit elsewhere"
+    if any(d.target != target and near(d.T_world_target[:3, 3]) for d in detections):
+        return "another template holds the target's place"
+    if any(h[0] == target and near(h[5:8]) for h in verified):
+        return "true hypothesis refused by verification"
+    return "no T-72 hypothesis within 2 m of the target"
+
+
 def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False) -> dict:
     from atr.evaluation.metrics import count, score_scene
     from atr.recognition import lowest_per_cell, recognize, terrain_height_at, uniform_subsample
@@ -255,6 +305,7 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
     # estimates it (docs/recognition.md, "Roofs"), by outcome
     above_terrain: dict[bool, list[float]] = {True: [], False: []}
     hypotheses = [0, 0]  # from RANSAC, and verified (repeats of one view dropped)
+    causes: dict[str, int] = {}  # verbose: why scenes are not true positives, by outcome
     for sc in scenes:
         res = recognize(
             sc["points"],
@@ -305,11 +356,19 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
                 *cells, T_true[:2, 3], config.terrain_window_m, config.ground_percentile
             )[0]
             sunk = int(np.count_nonzero(sc["points"][:, 2] < T_true[2, 3] - 3.0))
+            why = why_not_true_positive(
+                s.outcome,
+                res.detections,
+                res.stats.get("verified", []),
+                T_true if has else None,
+            )
+            if why:
+                causes[f"{s.outcome}: {why}"] = causes.get(f"{s.outcome}: {why}", 0) + 1
             print(
                 f"  {sc['name']:22} {s.outcome:2} pts {len(sc['points']):6d} kp {res.stats.get('keypoints', 0):5d}"
                 f" vis {sc['visible'][1]:.2f} az {m['azimuth_in_target_deg']:5.0f}"
                 f" terrain {terrain_m - T_true[2, 3]:+6.2f} m sunk {sunk:5d}"
-                f" {res.stage_times_ms['total']:6.0f} ms  [{det}]",
+                f" {res.stage_times_ms['total']:6.0f} ms  [{det}]" + (f"  ({why})" if why else ""),
                 flush=True,
             )
     if verbose and above_terrain[True]:
@@ -326,6 +385,9 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
             + (f" (up to {wrong.max():+.2f} m)" if len(wrong) else ""),
             flush=True,
         )
+    if verbose:
+        for cause, n in sorted(causes.items(), key=lambda c: -c[1]):
+            print(f"  {n:4d}  {cause}", flush=True)
     all_scores = [s for v in per.values() for s in v]
     return {
         "per": {
