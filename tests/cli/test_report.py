@@ -82,6 +82,10 @@ def test_a_recognised_scene_is_drawn_in_the_true_frame(tmp_path: Path):
     assert np.allclose(np.abs(across), np.abs(scene.cloud_m[:, 1] - TARGET_M[1]), atol=1e-6)
     section = "\n".join(_examples_section(Figures(tmp_path), path))
     assert "fig7_examples.png" in section and (tmp_path / "fig7_examples.png").stat().st_size > 0
+    # drawn again from the same recording, the figure is the same file (no churn in docs/)
+    first = (tmp_path / "fig7_examples.png").read_bytes()
+    _examples_section(Figures(tmp_path), path)
+    assert (tmp_path / "fig7_examples.png").read_bytes() == first
 
 
 def test_a_flight_without_a_true_positive_has_nothing_to_draw(tmp_path: Path):
