@@ -39,6 +39,7 @@ import statistics
 import sys
 import tempfile
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -57,9 +58,8 @@ RUNS: tuple[tuple[int, int], ...] = (
 )
 TUNING_SEEDS: tuple[int, ...] = (101, 102, 103, 104, 105)
 TARGETS: tuple[str, ...] = ("t72", "ifv", "truck6x6")
-NEAR_MISS_M = (
-    10.0  # a false T-72 fit closer than this to the target is a near miss, not a confusion
-)
+# a false T-72 fit closer than this to the target is a near miss, not a confusion
+NEAR_MISS_M = 10.0
 
 
 # ---------------------------------------------------------------------------------------------- make
@@ -273,15 +273,16 @@ def why_not_true_positive(
         return "reported without target"
     true_m = np.asarray(T_world_target, np.float64)[:3, 3]
 
-    def near(position_m: np.ndarray) -> bool:
-        return float(np.linalg.norm(np.asarray(position_m, np.float64) - true_m)) < (
-            MAX_TRANSLATION_ERROR_M
-        )
+    def off_m(position_m) -> float:
+        return float(np.linalg.norm(np.asarray(position_m, np.float64) - true_m))
+
+    def near(position_m) -> bool:
+        return off_m(position_m) < MAX_TRANSLATION_ERROR_M
 
     if outcome == "fp":
         best = next(d for d in detections if d.target == target)
-        if np.linalg.norm(best.T_world_target[:3, 3] - true_m) < NEAR_MISS_M:
-            return "T-72 fit 2-10 m off"
+        if off_m(best.T_world_target[:3, 3]) < NEAR_MISS_M:
+            return f"T-72 fit {MAX_TRANSLATION_ERROR_M:g}-{NEAR_MISS_M:g} m off"
     if any(d.target == target and near(d.T_world_target[:3, 3]) for d in detections):
         return "a true fit scores under a T-72 fit elsewhere"
     if any(d.target != target and near(d.T_world_target[:3, 3]) for d in detections):
@@ -305,7 +306,7 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
     # estimates it (docs/recognition.md, "Roofs"), by outcome
     above_terrain: dict[bool, list[float]] = {True: [], False: []}
     hypotheses = [0, 0]  # from RANSAC, and verified (repeats of one view dropped)
-    causes: dict[str, int] = {}  # verbose: why scenes are not true positives, by outcome
+    causes: Counter[str] = Counter()  # verbose: why scenes are not true positives, by outcome
     for sc in scenes:
         res = recognize(
             sc["points"],
@@ -363,7 +364,7 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
                 T_true if has else None,
             )
             if why:
-                causes[f"{s.outcome}: {why}"] = causes.get(f"{s.outcome}: {why}", 0) + 1
+                causes[f"{s.outcome}: {why}"] += 1
             print(
                 f"  {sc['name']:22} {s.outcome:2} pts {len(sc['points']):6d} kp {res.stats.get('keypoints', 0):5d}"
                 f" vis {sc['visible'][1]:.2f} az {m['azimuth_in_target_deg']:5.0f}"
@@ -386,7 +387,7 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
             flush=True,
         )
     if verbose:
-        for cause, n in sorted(causes.items(), key=lambda c: -c[1]):
+        for cause, n in causes.most_common():
             print(f"  {n:4d}  {cause}", flush=True)
     all_scores = [s for v in per.values() for s in v]
     return {

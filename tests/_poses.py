@@ -1,9 +1,11 @@
 """Camera poses the tests of several packages build: a camera at a point, looking at another."""
 
+from collections.abc import Sequence
+
 import numpy as np
 
 
-def look_at(eye, target) -> np.ndarray:
+def look_at(eye: Sequence[float] | np.ndarray, target: Sequence[float] | np.ndarray) -> np.ndarray:
     """World-from-camera (OpenCV axes) looking from eye at target, image x roughly horizontal."""
     eye = np.asarray(eye, float)
     z = np.asarray(target, float) - eye
