@@ -40,9 +40,9 @@ def sgm_correspondences(
     Returns:
         (pixels_a, pixels_b, stats, reason): (N, 2) float64 undistorted pixels in each image (so they are
         triangulated without undistortion), counters "keypoints" (grid pixels matched) and "tracked" (with a
-        valid disparity) and the matching "scale", and an empty reason; or a reason and no pixels when the
-        motion cannot be rectified (the baseline too close to the optical axis: the epipole lies in or near
-        the image).
+        valid disparity), the matching "scale" and the "disparities" searched (at that scale), and an empty
+        reason; or a reason and no pixels when the motion cannot be rectified (the baseline too close to the
+        optical axis: the epipole lies in or near the image).
 
     """
     h, w = gray_a.shape

@@ -53,6 +53,8 @@ class World:
         sun_dir: (3,) unit vector from the ground towards the sun.
         orbit: the run's camera-head trajectory.
         occluder_width_m: width of the tuned occluder building (0 when the run needs none).
+        vehicles: every vehicle of ``static``, parked cars and confusers, where it stands (the truth that
+            tells which non-target object a false detection sits on).
 
     """
 
@@ -66,6 +68,27 @@ class World:
     sun_dir: np.ndarray
     orbit: Orbit
     occluder_width_m: float
+    vehicles: tuple[PlacedVehicle, ...] = ()
+
+
+@dataclass(frozen=True)
+class PlacedVehicle:
+    """A non-target vehicle of the world.
+
+    Attributes:
+        name: "car", a confuser's template name ("ifv", "truck6x6") or "clutter-<i>" for the i-th
+            ``clutter_meshes`` entry of ``build_world``.
+        position_m: (3,) its mesh origin in the world frame (built-in vehicles: on the ground under
+            their centre), metres.
+        yaw_rad: heading of its x axis from the world x axis, radians.
+        radius_m: horizontal bounding radius about its origin, metres.
+
+    """
+
+    name: str
+    position_m: tuple[float, float, float]
+    yaw_rad: float
+    radius_m: float
 
 
 # terrain ------------------------------------------------------------------------------------------
@@ -264,6 +287,9 @@ class _Item:
     radius: float  # horizontal bounding radius, metres
     height: float  # top above its ground, metres
     kind: str
+    z: float = 0.0  # its origin's height, metres
+    yaw: float = 0.0  # heading, radians
+    name: str = ""  # vehicles: the name PlacedVehicle reports
 
 
 class _Keepout:
@@ -436,10 +462,10 @@ def build_world(
         d = np.hypot(occ_xyr[:, 0] - x, occ_xyr[:, 1] - y)
         return bool(np.all(d > r + occ_xyr[:, 2] + 0.5))
 
-    def add(mesh_local, x, y, yaw, r, h, kind, sink=0.0):
+    def add(mesh_local, x, y, yaw, r, h, kind, sink=0.0, name=""):
         nonlocal occ_xyr
         z = float(ground(x, y)) - sink
-        items.append(_Item(place(mesh_local, x, y, z, yaw), x, y, r, h, kind))
+        items.append(_Item(place(mesh_local, x, y, z, yaw), x, y, r, h, kind, z, yaw, name))
         occ_xyr = np.vstack([occ_xyr, [[x, y, r]]])
 
     # --- buildings in the blocks between streets --------------------------------------------------
@@ -517,14 +543,15 @@ def build_world(
         else:
             continue
         if free(x, y, 2.3) and keep.flyable(x, y, 2.3, 1.5):
-            add(car(M.CAR_PAINTS[int(rng.integers(len(M.CAR_PAINTS)))]), x, y, yaw, 2.3, 1.5, "car")
+            paint = M.CAR_PAINTS[int(rng.integers(len(M.CAR_PAINTS)))]
+            add(car(paint), x, y, yaw, 2.3, 1.5, "car", name="car")
     # --- confusers: an IFV, a 6x6 truck and any user meshes, on open ground near the target -------
-    confusers: list[Mesh] = [
-        ifv(M.OLIVE if rng.random() < 0.7 else M.SAND),
-        truck_6x6(M.OLIVE if rng.random() < 0.7 else M.SAND),
+    confusers: list[tuple[str, Mesh]] = [
+        ("ifv", ifv(M.OLIVE if rng.random() < 0.7 else M.SAND)),
+        ("truck6x6", truck_6x6(M.OLIVE if rng.random() < 0.7 else M.SAND)),
     ]
-    confusers += list(clutter_meshes)
-    for mesh in confusers:
+    confusers += [(f"clutter-{i}", mesh) for i, mesh in enumerate(clutter_meshes)]
+    for confuser_name, mesh in confusers:
         lo, hi = mesh.bounds()
         r = float(np.hypot(*np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))))
         for _ in range(200):
@@ -541,6 +568,7 @@ def build_world(
                     float(hi[2] - lo[2]),
                     "confuser",
                     sink=float(lo[2]),
+                    name=confuser_name,
                 )
                 break
 
@@ -572,6 +600,11 @@ def build_world(
         sun_dir=sun_dir,
         orbit=orbit,
         occluder_width_m=occluder_width,
+        vehicles=tuple(
+            PlacedVehicle(it.name, (it.x, it.y, it.z), float(it.yaw), it.radius)
+            for it in items
+            if it.name
+        ),
     )
 
 

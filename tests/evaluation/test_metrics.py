@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from atr.errors import InputError
-from atr.evaluation.metrics import Counts, count, f1_interval, score_scene
+from atr.evaluation.metrics import Counts, count, f1_interval, score_scene, vehicle_under
 
 TARGET = [np.array([10.0, 5.0, 0.0])]
 
@@ -99,3 +99,14 @@ def test_f1_interval_is_reproducible_and_checks_its_input():
     assert all(np.isnan(f1_interval([])))
     with pytest.raises(InputError, match="60 against 59"):
         f1_interval(a, a[:-1])
+
+
+def test_vehicle_under_names_the_nearest_vehicle_whose_radius_holds_the_position():
+    names = ["ifv", "truck6x6", "car"]
+    positions = np.array([[20.0, 0.0, 0.0], [23.0, 0.0, 0.0], [0.0, 30.0, 0.0]])
+    radii = np.array([3.7, 3.9, 2.3])
+    assert vehicle_under(np.array([21.0, 0.5, 5.0]), names, positions, radii) == "ifv"
+    assert vehicle_under(np.array([22.8, 0.0, 0.0]), names, positions, radii) == "truck6x6"
+    assert vehicle_under(np.array([0.0, 32.0, 0.0]), names, positions, radii) == "car"
+    assert vehicle_under(np.array([0.0, 33.0, 0.0]), names, positions, radii) == ""
+    assert vehicle_under(np.array([0.0, 0.0, 0.0]), [], np.zeros((0, 3)), np.zeros(0)) == ""

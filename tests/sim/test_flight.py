@@ -98,3 +98,28 @@ def test_target_mesh_with_origin_above_its_base_stands_on_the_ground(small_cfg):
     world = build_world(sc, 4, target_mesh=lifted, config=small_cfg)
     assert world.target.bounds()[0][2] == pytest.approx(0.0, abs=1e-9)
     assert world.T_world_target[2, 3] == pytest.approx(1.5)
+
+
+def test_world_lists_where_its_vehicles_stand(world_s1r3):
+    vehicles = world_s1r3.vehicles
+    names = [v.name for v in vehicles]
+    confusers = [n for n in names if n != "car"]
+    # each confuser once at most (one standing inside the run's occluder building is removed with it)
+    assert sorted(set(confusers)) == sorted(confusers) and 0 < len(confusers) <= 2
+    assert set(confusers) <= {"ifv", "truck6x6"} and "car" in names
+    target_xy = world_s1r3.T_world_target[:2, 3]
+    static = world_s1r3.static.vertices
+    for v in vehicles:
+        xy = np.asarray(v.position_m[:2])
+        if v.name != "car":
+            # confusers stand on open ground 14 m or more from the target (docs/sim.md)
+            assert np.linalg.norm(xy - target_xy) >= 14.0
+        # the static mesh has the vehicle's body there: vertices within its radius, above its base
+        near = static[np.linalg.norm(static[:, :2] - xy, axis=1) <= v.radius_m]
+        assert (near[:, 2] > v.position_m[2] + 1.0).any(), v
+
+
+def test_clutter_meshes_are_listed_by_their_index(small_cfg):
+    sc = custom_scenario(50.0, 30.0, n_scenes=1)
+    world = build_world(sc, 4, clutter_meshes=[truck_6x6()], config=small_cfg)
+    assert "clutter-0" in [v.name for v in world.vehicles]
