@@ -27,7 +27,8 @@ frame within one frame of the gap-1 pair's).
 runs ``atr.recognition.recognize`` on every cached cloud and scores it with ``atr.evaluation.metrics``
 (§III-C: TP within 2 m of the T-72; FP a T-72 hypothesis without target or > 2 m off; FN none). With
 ``--verbose`` it prints every scene's detections and ends with a tally of why the others failed
-(``why_not_true_positive``).
+(``why_not_true_positive``) and of what the false positives' T-72 fits sit on (an IFV, the 6x6 truck, a
+car, or elsewhere; each world rebuilt without rendering).
 """
 
 from __future__ import annotations
@@ -246,6 +247,22 @@ def parse_sets(items: list[str]) -> dict:
     return out
 
 
+def _vehicle_under_best(detections: list, meta: dict, vehicles: dict[tuple, tuple]) -> str:
+    """The vehicle the best T-72 detection sits on (its world rebuilt once per run and kept in
+    ``vehicles``), or the report's "elsewhere"."""
+    from atr.evaluation.metrics import vehicle_under
+    from atr.evaluation.runner import Flight
+    from atr.sim.config import SimConfig
+    from cli.evaluate import NOT_ON_A_VEHICLE, flight_vehicles
+
+    key = (meta["seed"], meta["scenario"], meta["run"])
+    if key not in vehicles:
+        flight = Flight(meta["scenario"], meta["run"], seed=meta["seed"])
+        vehicles[key] = flight_vehicles(flight, SimConfig())
+    best = next(d for d in detections if d.target == "t72")
+    return vehicle_under(best.T_world_target[:3, 3], *vehicles[key]) or NOT_ON_A_VEHICLE
+
+
 def why_not_true_positive(
     outcome: str,
     detections: list,
@@ -307,6 +324,8 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
     above_terrain: dict[bool, list[float]] = {True: [], False: []}
     hypotheses = [0, 0]  # from RANSAC, and verified (repeats of one view dropped)
     causes: Counter[str] = Counter()  # verbose: why scenes are not true positives, by outcome
+    fp_on: Counter[str] = Counter()  # verbose: what the false positives' best T-72 fit sits on
+    vehicles: dict[tuple, tuple] = {}  # each world's non-target vehicles, by (seed, scenario, run)
     for sc in scenes:
         res = recognize(
             sc["points"],
@@ -365,6 +384,8 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
             )
             if why:
                 causes[f"{s.outcome}: {why}"] += 1
+            if s.outcome == "fp":
+                fp_on[_vehicle_under_best(res.detections, m, vehicles)] += 1
             print(
                 f"  {sc['name']:22} {s.outcome:2} pts {len(sc['points']):6d} kp {res.stats.get('keypoints', 0):5d}"
                 f" vis {sc['visible'][1]:.2f} az {m['azimuth_in_target_deg']:5.0f}"
@@ -389,6 +410,8 @@ def evaluate(scenes: list[dict], templates: list, config, verbose: bool = False)
     if verbose:
         for cause, n in causes.most_common():
             print(f"  {n:4d}  {cause}", flush=True)
+        on = ", ".join(f"{name} {n}" for name, n in fp_on.most_common())
+        print(f"  false positives on: {on or 'none'}", flush=True)
     all_scores = [s for v in per.values() for s in v]
     return {
         "per": {

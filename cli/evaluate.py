@@ -556,6 +556,58 @@ def execute(
 
 # ------------------------------------------------------------------------------------------- tables
 
+NOT_ON_A_VEHICLE = "elsewhere"
+
+
+def flight_vehicles(flight: Any, sim_config: Any) -> tuple[list[str], Any, Any]:
+    """The flight's non-target vehicles (names, (V, 3) positions, (V,) radii), from its world rebuilt
+    without rendering (about a second; the same world `simulate_flight` renders for it).
+    """
+    import numpy as np  # noqa: PLC0415
+
+    from atr.io.mesh import load_mesh  # noqa: PLC0415
+    from atr.sim.scenarios import scenario as preset  # noqa: PLC0415
+    from atr.sim.world import build_world  # noqa: PLC0415
+
+    world = build_world(
+        preset(flight.scenario, flight.run),
+        flight.seed,
+        target_mesh=load_mesh(flight.target_mesh) if flight.target_mesh else None,
+        target_name=flight.target,
+        clutter_meshes=[load_mesh(p) for p in flight.clutter_meshes],
+        config=sim_config,
+    )
+    vehicles = world.vehicles
+    return (
+        [v.name for v in vehicles],
+        np.array([v.position_m for v in vehicles], np.float64).reshape(-1, 3),
+        np.array([v.radius_m for v in vehicles], np.float64),
+    )
+
+
+def false_positives_on(
+    records: Sequence[Any],
+    outcomes: Sequence[str],
+    target: str,
+    vehicles: tuple[list[str], Any, Any],
+) -> dict[str, int]:
+    """How many of a run's false positives sit on each kind of non-target vehicle (its name), and how many
+    on none (``NOT_ON_A_VEHICLE``: a building, a tree, the ground, or off the target).
+    """
+    from atr.evaluation.metrics import vehicle_under  # noqa: PLC0415
+
+    counts: dict[str, int] = {}
+    for record, outcome in zip(records, outcomes, strict=True):
+        if outcome != "fp":
+            continue
+        best = max(
+            (d for d in record.detections if d["target"] == target), key=lambda d: d["score"]
+        )
+        name = vehicle_under(record.sensor_relative(best["position_m"]), *vehicles)
+        key = name or NOT_ON_A_VEHICLE
+        counts[key] = counts.get(key, 0) + 1
+    return counts
+
 
 def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[dict], list[dict]]:
     """The contract rows (results.json) and the detailed rows (details.json) of every run."""
@@ -566,10 +618,24 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
     from atr.sim.scenarios import scenario as preset  # noqa: PLC0415
 
     contract, details = [], []
+    worlds: dict[tuple, tuple[list[str], Any, Any]] = {}
     for flight in plan_.flights:
+        # noise settings share their flight's world
+        world_key = (
+            flight.scenario,
+            flight.run,
+            flight.seed,
+            flight.target_mesh,
+            flight.clutter_meshes,
+        )
         for arm in plan_.arms:
             records = results[(flight, arm)]
             s = summarise(records, flight.target, plan_.config.sim.present_min_visible_fraction)
+            fp_on: dict[str, int] = {}
+            if s.counts.fp:
+                if world_key not in worlds:
+                    worlds[world_key] = flight_vehicles(flight, plan_.config.sim)
+                fp_on = false_positives_on(records, s.outcomes, flight.target, worlds[world_key])
             row = {
                 "scenario": flight.scenario,
                 "run": flight.run,
@@ -610,6 +676,7 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
                         if records
                         else None,
                         "template_storage_kb": storage,
+                        "false_positives_on": fp_on,
                     }
                 )
             )

@@ -11,7 +11,7 @@ import pytest
 from atr.recognition.matcher import Detection
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
-from tune_recognition import why_not_true_positive  # noqa: E402
+from tune_recognition import _vehicle_under_best, why_not_true_positive  # noqa: E402
 
 T_TRUE = np.eye(4)
 
@@ -67,3 +67,19 @@ def test_each_failure_gets_the_first_reason_that_holds(
     outcome: str, detections: list, verified: list, T_true: np.ndarray | None, expected: str
 ) -> None:
     assert why_not_true_positive(outcome, detections, verified, T_true) == expected
+
+
+def test_a_false_t72_fit_is_told_by_the_vehicle_it_sits_on() -> None:
+    from atr.sim import build_world, scenario
+
+    meta = {"seed": 101, "scenario": 2, "run": 1}
+    world = build_world(scenario(2, 1), 101)
+    ifv = next(v for v in world.vehicles if v.name == "ifv")
+    worlds: dict[tuple, tuple] = {}
+    on_ifv = [_at(-50.0, "truck6x6"), _at(ifv.position_m[0]), _at(0.0)]
+    on_ifv[1].T_world_target[1, 3] = ifv.position_m[1]
+    # the best T-72 fit decides, not a better-scoring confuser fit nor a later T-72 fit
+    assert _vehicle_under_best(on_ifv, meta, worlds) == "ifv"
+    assert list(worlds) == [(101, 2, 1)]
+    far = world.T_world_target[0, 3] + 500.0
+    assert _vehicle_under_best([_at(far)], meta, worlds) == "elsewhere"

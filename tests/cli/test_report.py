@@ -15,6 +15,7 @@ from cli.report import (
     Figures,
     _differences_section,
     _examples_section,
+    _false_positives_section,
     _scene_outcomes,
     example_scenes,
 )
@@ -140,3 +141,24 @@ def test_the_report_tells_a_real_difference_from_noise():
     assert set(table) == {"gftt-sfm/shot", "lidar/shot"}
     assert table["gftt-sfm/shot"][-1].startswith("no")
     assert table["lidar/shot"][-1].startswith("yes")
+
+
+def test_false_positives_are_pooled_per_arm_by_what_they_sit_on():
+    rows = [
+        {
+            **_run_row("sgm-sfm", "shot", 1, ["fp"] * 3),
+            "false_positives_on": {"ifv": 2, "elsewhere": 1},
+        },
+        {**_run_row("sgm-sfm", "shot", 2, ["fp"] * 2), "false_positives_on": {"ifv": 1, "car": 1}},
+        {**_run_row("lidar", "shot", 1, ["tp"]), "false_positives_on": {}},
+    ]
+    section = "\n".join(_false_positives_section(rows))
+    lines = [line for line in section.splitlines() if line.startswith("| ")]
+    header = lines[0].strip("| ").split(" | ")
+    assert header == ["pipeline / descriptor", "FP", "car", "ifv", "elsewhere", "on a vehicle"]
+    table = {line.split(" | ")[0][2:]: line.strip("| ").split(" | ")[1:] for line in lines[1:]}
+    assert table["sgm-sfm/shot"] == ["5", "1", "3", "1", "80.0%"]
+    assert table["lidar/shot"] == ["0", "0", "0", "0", "–"]
+    # a result written before the field existed gets no section rather than a wrong one
+    del rows[0]["false_positives_on"]
+    assert _false_positives_section(rows) == []

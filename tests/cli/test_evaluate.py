@@ -1,0 +1,47 @@
+"""`atr eval`'s details: what each false positive sits on, from the flight's world rebuilt without rendering."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from atr.config import AtrConfig
+from atr.evaluation.runner import Flight, SceneRecord
+from atr.evaluation.scoring import summarise
+from cli.evaluate import NOT_ON_A_VEHICLE, false_positives_on, flight_vehicles
+
+
+def _record(detections: list[tuple[str, np.ndarray, float]], target_m: np.ndarray) -> SceneRecord:
+    return SceneRecord(
+        frame=1,
+        stamp_ns=0,
+        truth=[{"name": "t72", "position_m": target_m.tolist(), "visible_fraction": 1.0}],
+        detections=[
+            {"target": name, "position_m": p.tolist(), "score": score}
+            for name, p, score in detections
+        ],
+        time_ms=1.0,
+    )
+
+
+def test_false_positives_are_counted_by_the_vehicle_under_the_best_hypothesis():
+    flight = Flight(scenario=2, run=1)
+    names, positions, radii = vehicles = flight_vehicles(flight, AtrConfig().sim)
+    ifv = positions[names.index("ifv")]
+    truck = positions[names.index("truck6x6")]
+    target = np.array([0.0, 0.0, 0.0])
+    far = target + np.array([200.0, 200.0, 0.0])  # bare ground or a building, no vehicle
+    records = [
+        _record([("t72", target + 0.5, 10.0)], target),  # TP
+        _record([("t72", ifv + 0.5, 9.0), ("t72", target, 5.0)], target),  # the IFV ranks first
+        _record([("t72", truck, 9.0), ("ifv", ifv, 20.0)], target),  # only T-72 hypotheses count
+        _record([("t72", far, 3.0)], target),
+        _record([], target),  # FN
+    ]
+    outcomes = summarise(records, "t72", 0.1).outcomes
+    assert outcomes == ("tp", "fp", "fp", "fp", "fn")
+    assert vehicles[2].shape == (len(names),) and np.all(radii > 0)
+    assert false_positives_on(records, outcomes, "t72", vehicles) == {
+        "ifv": 1,
+        "truck6x6": 1,
+        NOT_ON_A_VEHICLE: 1,
+    }
