@@ -285,6 +285,19 @@ def _templates_2d(plan_: Plan) -> None:
         plan_.storage_kb[("2d", pair)] = template_storage_bytes(plan_.templates_2d[pair]) / 1024
 
 
+def _storage_key(arm: Any) -> tuple[str, str]:
+    return ("2d", arm.pipeline) if arm.is_2d else ("3d", arm.descriptor)
+
+
+def _reuse_storage(plan_: Plan, arm: Any, run_file: Path) -> None:
+    """A reused result's template storage, from its run file: templates are only built for runs to do, so
+    an invocation whose results are all current would otherwise report none.
+    """
+    kb = json.loads(run_file.read_text()).get("extra", {}).get("storage_kb")
+    if kb is not None:
+        plan_.storage_kb.setdefault(_storage_key(arm), kb)
+
+
 # ------------------------------------------------------------------------------------------- running
 
 
@@ -479,6 +492,7 @@ def execute(
                 todo.setdefault(flight, []).append(arm)
             else:
                 results[(flight, arm)] = records
+                _reuse_storage(plan_, arm, runs_dir / f"{key}.json")
     total = len(plan_.flights) * len(plan_.arms)
     _log(
         f"atr eval: {total} runs ({len(plan_.flights)} flights x {len(plan_.arms)} pipelines/descriptors), "
@@ -500,11 +514,7 @@ def execute(
                 arm,
                 keys[(flight, arm)],
                 records,
-                {
-                    "storage_kb": plan_.storage_kb.get(
-                        ("2d" if arm.is_2d else "3d", arm.pipeline if arm.is_2d else arm.descriptor)
-                    )
-                },
+                {"storage_kb": plan_.storage_kb.get(_storage_key(arm))},
             )
             results[(flight, arm)] = records
         done += 1
@@ -651,9 +661,7 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
                 "scenes": s.scenes,
             }
             sc = preset(flight.scenario, flight.run)
-            storage = plan_.storage_kb.get(
-                ("2d" if arm.is_2d else "3d", arm.pipeline if arm.is_2d else arm.descriptor)
-            )
+            storage = plan_.storage_kb.get(_storage_key(arm))
             contract.append(jsonable(row))
             details.append(
                 jsonable(

@@ -45,3 +45,25 @@ def test_false_positives_are_counted_by_the_vehicle_under_the_best_hypothesis():
         "truck6x6": 1,
         NOT_ON_A_VEHICLE: 1,
     }
+
+
+def test_an_invocation_whose_results_are_all_current_keeps_their_template_storage(tmp_path):
+    import sys
+    from pathlib import Path
+
+    from cli.evaluate import execute, plan, rows
+    from cli.main import build_parser
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "evaluation"))
+    from _small_flight import SMALL_FLIGHT
+
+    def details() -> dict:
+        args = [*SMALL_FLIGHT, "--frames", "3", "--results", str(tmp_path)]
+        p = plan(build_parser().parse_args(args))
+        return rows(p, execute(p))[1][0]
+
+    first = details()  # computes the run and builds its templates
+    again = details()  # reuses the run file: no template is built
+    assert first["template_storage_kb"] > 0
+    assert again["template_storage_kb"] == first["template_storage_kb"]
+    assert again["outcomes"] == first["outcomes"]
