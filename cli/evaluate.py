@@ -628,16 +628,9 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
     from atr.sim.scenarios import scenario as preset  # noqa: PLC0415
 
     contract, details = [], []
-    worlds: dict[tuple, tuple[list[str], Any, Any]] = {}
+    worlds: dict[Any, tuple[list[str], Any, Any]] = {}
     for flight in plan_.flights:
-        # noise settings share their flight's world
-        world_key = (
-            flight.scenario,
-            flight.run,
-            flight.seed,
-            flight.target_mesh,
-            flight.clutter_meshes,
-        )
+        world_key = replace(flight, noise="none")  # noise settings share their flight's world
         for arm in plan_.arms:
             records = results[(flight, arm)]
             s = summarise(records, flight.target, plan_.config.sim.present_min_visible_fraction)

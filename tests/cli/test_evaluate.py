@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 
 from atr.config import AtrConfig
 from atr.evaluation.runner import Flight, SceneRecord
 from atr.evaluation.scoring import summarise
-from cli.evaluate import NOT_ON_A_VEHICLE, false_positives_on, flight_vehicles
+from cli.evaluate import NOT_ON_A_VEHICLE, execute, false_positives_on, flight_vehicles, plan, rows
+from cli.main import build_parser
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "evaluation"))
+from _small_flight import SMALL_FLIGHT  # noqa: E402
 
 
 def _record(detections: list[tuple[str, np.ndarray, float]], target_m: np.ndarray) -> SceneRecord:
@@ -48,15 +55,6 @@ def test_false_positives_are_counted_by_the_vehicle_under_the_best_hypothesis():
 
 
 def test_an_invocation_whose_results_are_all_current_keeps_their_template_storage(tmp_path):
-    import sys
-    from pathlib import Path
-
-    from cli.evaluate import execute, plan, rows
-    from cli.main import build_parser
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "evaluation"))
-    from _small_flight import SMALL_FLIGHT
-
     def details() -> dict:
         args = [*SMALL_FLIGHT, "--frames", "3", "--results", str(tmp_path)]
         p = plan(build_parser().parse_args(args))
