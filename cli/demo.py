@@ -26,10 +26,9 @@ def demo_run(scenario: int) -> int:
     """The scenario's run at ``DEMO_OBLIQUITY_DEG`` (scenario 1 and 2: run 3; scenario 3: its only run)."""
     from atr.sim.scenarios import TABLE_II  # noqa: PLC0415
 
-    if scenario not in TABLE_II:
-        return 1  # the sensor source names the bad scenario
-    obliquities = TABLE_II[scenario][1]
-    return 1 + min(range(len(obliquities)), key=lambda i: abs(obliquities[i] - DEMO_OBLIQUITY_DEG))
+    # an unknown scenario gets run 1: the sensor source then names the bad scenario
+    obliquities = TABLE_II[scenario][1] if scenario in TABLE_II else ()
+    return obliquities.index(DEMO_OBLIQUITY_DEG) + 1 if DEMO_OBLIQUITY_DEG in obliquities else 1
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
