@@ -69,16 +69,48 @@ def knndr_keep(
     return out_rows[:n_out], out_cols[:n_out], out_dist[:n_out]
 
 
+_RADIX_BITS = 11  # 2,048 buckets: two passes sort the Hough accumulator's keys
+
+
 @numba.njit(cache=True)
-def make_stable(order: np.ndarray, sorted_values: np.ndarray) -> None:  # pragma: no cover
-    """Turn an argsort into a stable one in place: indices ascending within runs of equal values."""
-    start = 0
-    n = order.shape[0]
-    for i in range(1, n + 1):
-        if i == n or sorted_values[i] != sorted_values[start]:
-            if i - start > 1:
-                order[start:i] = np.sort(order[start:i])
-            start = i
+def stable_argsort_nonnegative(keys: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """``np.argsort(keys, kind="stable")`` for non-negative int64 keys, by LSD radix sort.
+
+    Non-negative float64 values sort like their bit patterns read as int64 (``x.view(np.int64)``, with
+    -0.0 made +0.0 first), so distances go through here too. Passes run only over the bits the largest
+    key uses; each pass is stable, so equal keys keep their index order.
+
+    Raises:
+        ValueError: a key is negative.
+
+    """
+    n = keys.shape[0]
+    order = np.arange(n)
+    if n < 2:
+        return order
+    if keys.min() < 0:
+        raise ValueError("stable_argsort_nonnegative needs keys >= 0")
+    bits = 0
+    top = keys.max()
+    while top > 0:
+        bits += 1
+        top >>= 1
+    buckets = 1 << _RADIX_BITS
+    mask = buckets - 1
+    other = np.empty(n, np.int64)
+    start = np.empty(buckets + 1, np.int64)
+    for shift in range(0, bits, _RADIX_BITS):
+        start[:] = 0
+        for i in range(n):
+            start[((keys[order[i]] >> shift) & mask) + 1] += 1
+        for d in range(buckets):
+            start[d + 1] += start[d]
+        for i in range(n):
+            d = (keys[order[i]] >> shift) & mask
+            other[start[d]] = order[i]
+            start[d] += 1
+        order, other = other, order
+    return order
 
 
 # ------------------------------------------------------------------------------ upright Hough grouping

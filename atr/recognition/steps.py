@@ -249,8 +249,7 @@ def knndr_from_distances(
     sc, mo, di = _kernels.knndr_keep(d2, d_k, kk, float(ratio))
     mo = cols[mo]
     # best first, ties by scene then model index (the kernel's order, which a stable sort keeps)
-    o = np.argsort(di)
-    _kernels.make_stable(o, di[o])
+    o = _kernels.stable_argsort_nonnegative((di + 0.0).view(np.int64))
     if max_correspondences is not None:
         o = o[:max_correspondences]
     return Correspondences(sc[o], mo[o], di[o])
@@ -450,7 +449,7 @@ def group_upright_hough(
         return []
     # A correspondence votes at most once per bin, so a cell's votes are distinct correspondences.
     # Peaks are taken most votes first, ties in (bin, x, y) order.
-    by_cell = np.argsort(cell)
+    by_cell = _kernels.stable_argsort_nonnegative(cell)
     cell, ci = cell[by_cell], ci[by_cell]
     peaks, counts = _kernels.count_runs(cell, min_size)
     peaks = peaks[np.argsort(-counts, kind="stable")]

@@ -237,6 +237,31 @@ def _distance_matrices(rng):
     return out
 
 
+# ------------------------------------------------------------------------------ sorting
+
+
+def test_radix_argsort_is_numpys_stable_argsort_for_keys_and_distances():
+    """The radix sort that orders Hough votes and kNNDR correspondences is np.argsort(kind="stable")."""
+    rng = np.random.default_rng(7)
+    for n in (0, 1, 2, 5, 1000, 30_000):
+        for top in (1, 3, 2**11, 2**11 + 1, 450_000, 2**40, 2**62):  # one pass, two, four, six
+            keys = rng.integers(0, top, n)
+            got = _kernels.stable_argsort_nonnegative(keys)
+            assert np.array_equal(got, np.argsort(keys, kind="stable"))
+        # distances as knndr_from_distances passes them: ties, signed zeros, subnormals, inf
+        dist = np.sqrt(rng.integers(0, 50, n).astype(np.float32).astype(np.float64))
+        dist[rng.random(n) < 0.1] = -0.0
+        dist[rng.random(n) < 0.05] = 5e-324
+        dist[rng.random(n) < 0.05] = np.inf
+        got = _kernels.stable_argsort_nonnegative((dist + 0.0).view(np.int64))
+        assert np.array_equal(got, np.argsort(dist, kind="stable"))
+
+
+def test_radix_argsort_refuses_negative_keys():
+    with pytest.raises(ValueError, match="keys >= 0"):
+        _kernels.stable_argsort_nonnegative(np.array([3, -1, 2], np.int64))
+
+
 # ------------------------------------------------------------------------------ kNNDR
 
 
