@@ -83,6 +83,9 @@ def main() -> None:
         + "     total  x ref  found"
     )
     for name in args.clouds:
+        if name not in clouds:  # a tuning scene made without its LIDAR scan
+            print(f"{name:5} not in {args.scene}")
+            continue
         pts = clouds[name]
         for desc in args.descriptors:
             if not have_descriptor(desc):
