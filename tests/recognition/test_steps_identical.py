@@ -244,7 +244,7 @@ def test_radix_argsort_is_numpys_stable_argsort_for_keys_and_distances():
     """The radix sort that orders Hough votes and kNNDR correspondences is np.argsort(kind="stable")."""
     rng = np.random.default_rng(7)
     for n in (0, 1, 2, 5, 1000, 30_000):
-        for top in (1, 3, 2**11, 2**11 + 1, 450_000, 2**40, 2**62):  # one pass, two, four, six
+        for top in (1, 3, 2**11, 2**11 + 1, 450_000, 2**40, 2**62):  # 0, 1, 1, 2, 2, 4 and 6 passes
             keys = rng.integers(0, top, n)
             got = _kernels.stable_argsort_nonnegative(keys)
             assert np.array_equal(got, np.argsort(keys, kind="stable"))
