@@ -203,7 +203,9 @@ def relative_camera_pose(T_world_cam_a: np.ndarray, T_world_cam_b: np.ndarray) -
     return np.linalg.inv(T_world_cam_b) @ T_world_cam_a
 
 
-def fixation_depth_m(T_world_cam_a: np.ndarray, T_world_cam_b: np.ndarray) -> float | None:
+def fixation_depth_m(
+    T_world_cam_a: np.ndarray, T_world_cam_b: np.ndarray, max_miss_m: float = np.inf
+) -> float | None:
     """Depth in camera a of the point where the two optical axes pass closest: what the camera fixates.
 
     A UAV that orbits its target and keeps it in view turns between frames so that the target stays
@@ -212,10 +214,11 @@ def fixation_depth_m(T_world_cam_a: np.ndarray, T_world_cam_b: np.ndarray) -> fl
     Args:
         T_world_cam_a: (4, 4) world-from-camera at the first frame (OpenCV axes, z forward).
         T_world_cam_b: (4, 4) world-from-camera at the second frame.
+        max_miss_m: axes that pass further apart than this do not fixate a point.
 
     Returns:
-        The depth (m) along camera a's axis, or None when the axes are parallel or pass closest
-        behind either camera.
+        The depth (m) along camera a's axis, or None when the axes are parallel, pass closest
+        behind either camera, or miss each other by more than ``max_miss_m``.
 
     """
     axis_a, axis_b = T_world_cam_a[:3, 2], T_world_cam_b[:3, 2]
@@ -227,7 +230,8 @@ def fixation_depth_m(T_world_cam_a: np.ndarray, T_world_cam_b: np.ndarray) -> fl
     along_a, along_b = float(axis_a @ offset), float(axis_b @ offset)
     depth = (cos_ab * along_b - along_a) / sin2
     depth_b = (along_b - cos_ab * along_a) / sin2
-    return depth if depth > 0.0 and depth_b > 0.0 else None
+    miss_m = float(np.linalg.norm(offset + depth * axis_a - depth_b * axis_b))
+    return depth if depth > 0.0 and depth_b > 0.0 and miss_m <= max_miss_m else None
 
 
 def predict_on_fixation_plane(
@@ -384,22 +388,24 @@ def triangulate_known_pose(
     reproj_px = np.maximum(np.linalg.norm(proj_a - a, axis=1), np.linalg.norm(proj_b - b, axis=1))
     reproj_ok = reproj_px <= config.max_reprojection_px
 
-    # Rays from each camera centre to the point (camera a's frame); camera b's centre is -R^T t.
+    # Camera b's centre in camera a's frame is -R^T t.
     centre_b = -R_ba.T @ t_ba
-    v_a = X_a
-    v_b = X_a - centre_b
-    range_a = np.linalg.norm(v_a, axis=1)
-    range_b = np.linalg.norm(v_b, axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cos_par = np.einsum("ij,ij->i", v_a, v_b) / (range_a * range_b)
-    parallax_rad = np.arccos(np.clip(np.nan_to_num(cos_par, nan=1.0), -1.0, 1.0))
+    sigma_theta = config.pixel_sigma_px / (0.5 * (K[0, 0] + K[1, 1]))
+    range_a = np.linalg.norm(X_a, axis=1)
+    parallax_rad, sigma = _parallax_and_sigma(X_a, centre_b, sigma_theta)
     parallax_ok = parallax_rad >= np.deg2rad(config.min_parallax_deg)
-
-    focal_px = 0.5 * (K[0, 0] + K[1, 1])
-    sigma_theta = config.pixel_sigma_px / focal_px
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sigma = sigma_theta * np.sqrt(range_a**2 + range_b**2) / np.sin(parallax_rad)
+    with np.errstate(invalid="ignore"):
         sigma_ok = sigma <= config.max_relative_sigma * range_a
+    # Orbit pairs' axes miss each other by under a tenth of the baseline; axes that miss by a quarter
+    # of it fixate nothing the camera aims at.
+    fixation_m = fixation_depth_m(T_wa, T_wb, max_miss_m=0.25 * baseline_m)
+    if config.max_sigma_vs_fixation is not None and fixation_m is not None:
+        _, sigma_fixation = _parallax_and_sigma(
+            np.array([[0.0, 0.0, fixation_m]]), centre_b, sigma_theta
+        )
+        stats["fixation_sigma_m"] = float(sigma_fixation[0])
+        with np.errstate(invalid="ignore"):
+            sigma_ok &= sigma <= config.max_sigma_vs_fixation * sigma_fixation[0]
 
     # Each rejected point is counted once, at the first gate it fails.
     keep = in_front & reproj_ok & parallax_ok & sigma_ok
@@ -422,3 +428,24 @@ def triangulate_known_pose(
         pixels=a[keep].astype(np.float32),
         stats=stats,
     )
+
+
+def _parallax_and_sigma(
+    X_a: np.ndarray, centre_b: np.ndarray, sigma_theta: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Parallax angle (rad) and 1-sigma depth error (m) of points seen from two camera centres.
+
+    Args:
+        X_a: (N, 3) points in camera a's frame (camera a's centre is the origin).
+        centre_b: (3,) camera b's centre in camera a's frame.
+        sigma_theta: angular error of each ray, rad (pixel sigma / focal length).
+
+    """
+    v_b = X_a - centre_b
+    range_a = np.linalg.norm(X_a, axis=1)
+    range_b = np.linalg.norm(v_b, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos_par = np.einsum("ij,ij->i", X_a, v_b) / (range_a * range_b)
+        parallax_rad = np.arccos(np.clip(np.nan_to_num(cos_par, nan=1.0), -1.0, 1.0))
+        sigma = sigma_theta * np.sqrt(range_a**2 + range_b**2) / np.sin(parallax_rad)
+    return parallax_rad, sigma

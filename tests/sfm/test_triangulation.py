@@ -171,6 +171,7 @@ def test_bad_intrinsics_and_pixels_raise(cams) -> None:
         {"klt_aided_pyramid_levels": -1},
         {"ground_z_m": float("nan")},
         {"sgm_ground_margin": 0.0},
+        {"max_sigma_vs_fixation": 0.0},
     ],
 )
 def test_config_refuses_bad_values(kwargs: dict) -> None:
@@ -201,6 +202,49 @@ def test_orbiting_cameras_fixate_their_centre() -> None:
     assert fixation_depth_m(T_a, T_shifted) is None
     T_away = look_at(target + [100.0, 7.5, 4.0], target + [200.0, 15.0, 4.0])
     assert fixation_depth_m(T_a, T_away) is None
+    # camera b aims 3 m above the target: the axes miss each other, and fixate a point only when
+    # a miss that large is allowed
+    T_over = look_at(
+        target + [100.0 * np.cos(0.08), 100.0 * np.sin(0.08), 4.0], target + [0, 0, 3.0]
+    )
+    assert fixation_depth_m(T_a, T_over, max_miss_m=1.0) is None
+    assert fixation_depth_m(T_a, T_over) is not None
+
+
+def test_points_far_beyond_the_fixation_point_are_dropped() -> None:
+    """The gate keeps what lies near and before the fixated target, and drops the far background."""
+    target = np.array([0.0, 0.0, 0.0])
+    T_a = look_at(target + [100.0, 0.0, 4.0], target)
+    T_b = look_at(target + [100.0 * np.cos(0.075), 100.0 * np.sin(0.075), 4.0], target)
+    # points along camera a's view of the target: 60 m from it to 300 m behind it
+    rng = np.random.default_rng(7)
+    depth_m = np.r_[rng.uniform(40.0, 100.0, 100), rng.uniform(120.0, 400.0, 100)]
+    lateral = rng.uniform(-5.0, 5.0, (200, 2))
+    X = (np.c_[lateral, depth_m]) @ T_a[:3, :3].T + T_a[:3, 3]
+    pa, pb = project(X, T_a), project(X, T_b)
+    loose = SfmConfig(max_relative_sigma=1.0, max_sigma_vs_fixation=None)
+    everything = triangulate_known_pose(pa, pb, K, T_a, T_b, loose)
+    assert len(everything) == 200
+    gated = triangulate_known_pose(
+        pa, pb, K, T_a, T_b, SfmConfig(max_relative_sigma=1.0, max_sigma_vs_fixation=1.3)
+    )
+    # sigma grows with the square of the range: 1.3 x the fixation point's sigma is ~1.14 x its depth
+    kept_depth = (gated.points_world_m - T_a[:3, 3]) @ T_a[:3, 2]
+    fixation_m = fixation_depth_m(T_a, T_b)
+    assert kept_depth.max() < 1.2 * fixation_m
+    assert np.count_nonzero(depth_m <= 1.05 * fixation_m) <= len(gated) < 200
+    assert gated.stats["rejected_sigma"] == 200 - len(gated)
+    assert gated.stats["fixation_sigma_m"] == pytest.approx(
+        np.interp(fixation_m, np.sort(depth_m), everything.sigma_m[np.argsort(depth_m)]), rel=0.1
+    )
+    # a pair whose axes do not meet (a sideways step, both cameras looking the same way) has no
+    # fixation point, and nothing is dropped for it
+    T_side = T_a.copy()
+    T_side[:3, 3] += 7.5 * T_a[:3, 0]
+    side = triangulate_known_pose(
+        pa, project(X, T_side), K, T_a, T_side, SfmConfig(max_relative_sigma=1.0)
+    )
+    assert len(side) == 200 and "fixation_sigma_m" not in side.stats
 
 
 @pytest.mark.parametrize("dist", [None, np.array([-0.2, 0.05, 0.001, -0.001, 0.0])])
