@@ -314,6 +314,23 @@ def _work_in_process(
     return run_flight(flight, arms, config, templates_3d, templates_2d, b2d)
 
 
+def _share_the_cores(jobs: int) -> None:
+    """Give a worker its share of the machine's cores for its compiled and OpenCV threads.
+
+    Every worker would otherwise start a thread per core for each parallel loop (numba's descriptors and
+    neighbour searches, OpenCV's semi-global matching): with two workers on two cores the threads of one
+    wait for the other's, and a scene took 1.2-1.3 x its one-worker time (docs/performance.md). The
+    thread count changes no result: each loop's iterations are independent, and OpenCV's matcher gives
+    the same disparities with 1-8 threads.
+    """
+    import cv2  # noqa: PLC0415
+    import numba  # noqa: PLC0415
+
+    threads = max(1, (os.cpu_count() or 1) // jobs)
+    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    cv2.setNumThreads(threads)
+
+
 def _work_via_services(
     flight: Any, arms: list[Any], plan_: Plan, workdir: Path
 ) -> dict[Any, list[Any]]:
@@ -543,7 +560,10 @@ def execute(
     # spawn, not fork: the parent already runs OpenMP/numba threads (template building), and a fork of such a
     # process is unsafe (GNU OpenMP terminates it).
     with ProcessPoolExecutor(
-        max_workers=jobs, mp_context=multiprocessing.get_context("spawn")
+        max_workers=jobs,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_share_the_cores,
+        initargs=(jobs,),
     ) as pool:
         pending = {
             pool.submit(

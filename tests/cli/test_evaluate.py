@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -65,3 +67,21 @@ def test_an_invocation_whose_results_are_all_current_keeps_their_template_storag
     assert first["template_storage_kb"] > 0
     assert again["template_storage_kb"] == first["template_storage_kb"]
     assert again["outcomes"] == first["outcomes"]
+
+
+def test_each_worker_gets_its_share_of_the_cores():
+    # in a fresh interpreter, as a worker process starts
+    code = (
+        "import cv2, numba, os\n"
+        "from cli.evaluate import _share_the_cores\n"
+        "_share_the_cores(2)\n"
+        "share = max(1, (os.cpu_count() or 1) // 2)\n"
+        "print(numba.get_num_threads(), cv2.getNumThreads(), min(share, numba.config.NUMBA_NUM_THREADS))\n"
+    )
+    root = Path(__file__).resolve().parents[2]
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=root, capture_output=True, text=True, check=True
+    )
+    numba_threads, cv2_threads, share = map(int, out.stdout.split())
+    assert numba_threads == share
+    assert cv2_threads == max(1, (os.cpu_count() or 1) // 2)
