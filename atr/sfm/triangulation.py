@@ -22,6 +22,10 @@ import numpy as np
 from atr.errors import InputError
 from atr.sfm.config import SfmConfig
 
+FIXATION_MAX_MISS_VS_BASELINE = 0.25
+"""Optical axes that pass further apart than this multiple of the baseline fixate nothing the camera aims
+at; an orbiting pair's pass within a tenth of it (``triangulate_known_pose``'s fixation gate)."""
+
 
 @dataclass
 class SfmCloud:
@@ -396,9 +400,7 @@ def triangulate_known_pose(
     parallax_ok = parallax_rad >= np.deg2rad(config.min_parallax_deg)
     with np.errstate(invalid="ignore"):
         sigma_ok = sigma <= config.max_relative_sigma * range_a
-    # Orbit pairs' axes miss each other by under a tenth of the baseline; axes that miss by a quarter
-    # of it fixate nothing the camera aims at.
-    fixation_m = fixation_depth_m(T_wa, T_wb, max_miss_m=0.25 * baseline_m)
+    fixation_m = fixation_depth_m(T_wa, T_wb, max_miss_m=FIXATION_MAX_MISS_VS_BASELINE * baseline_m)
     if config.max_sigma_vs_fixation is not None and fixation_m is not None:
         _, sigma_fixation = _parallax_and_sigma(
             np.array([[0.0, 0.0, fixation_m]]), centre_b, sigma_theta
