@@ -314,8 +314,9 @@ def _work_in_process(
     return run_flight(flight, arms, config, templates_3d, templates_2d, b2d)
 
 
-def _share_the_cores(jobs: int) -> None:
-    """Give a worker its share of the machine's cores for its compiled and OpenCV threads.
+def _share_the_cores(workers: int) -> None:
+    """Give a worker its share of the machine's cores (one of ``workers``) for its compiled and OpenCV
+    threads.
 
     Every worker would otherwise start a thread per core for each parallel loop (numba's descriptors and
     neighbour searches, OpenCV's semi-global matching): with two workers on two cores the threads of one
@@ -326,7 +327,7 @@ def _share_the_cores(jobs: int) -> None:
     import cv2  # noqa: PLC0415
     import numba  # noqa: PLC0415
 
-    threads = max(1, (os.cpu_count() or 1) // jobs)
+    threads = max(1, (os.cpu_count() or 1) // workers)
     numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     cv2.setNumThreads(threads)
 
@@ -563,7 +564,7 @@ def execute(
         max_workers=jobs,
         mp_context=multiprocessing.get_context("spawn"),
         initializer=_share_the_cores,
-        initargs=(jobs,),
+        initargs=(min(jobs, len(todo)),),  # fewer flights than jobs: fewer workers share the cores
     ) as pool:
         pending = {
             pool.submit(
