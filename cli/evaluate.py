@@ -320,7 +320,7 @@ def _share_the_cores(workers: int) -> None:
 
     Every worker would otherwise start a thread per core for each parallel loop (numba's descriptors and
     neighbour searches, OpenCV's semi-global matching): with two workers on two cores the threads of one
-    wait for the other's, and a scene took 1.2-1.3 x its one-worker time (docs/performance.md). The
+    wait for the other's, and a scene took 1.2-1.5 x its one-worker time (docs/performance.md). The
     thread count changes no result: each loop's iterations are independent, and OpenCV's matcher gives
     the same disparities with 1-8 threads.
     """
