@@ -2,7 +2,7 @@
 
 The relative pose comes from the IMU (eq. 1), not from an essential matrix: with
 T_cam_b_cam_a = inv(T_world_cam_b) @ T_world_cam_a, each correspondence is triangulated linearly
-(cv2.triangulatePoints on normalised coordinates) in camera a's frame, gated, and moved to the world.
+(``triangulate_linear`` on normalised coordinates) in camera a's frame, gated, and moved to the world.
 
 Per-point uncertainty (SfmCloud.sigma_m): a pixel error of sigma_px is an angular error
 sigma_theta = sigma_px / f on each ray. Turning one ray by d_theta slides the intersection along the
@@ -374,12 +374,7 @@ def triangulate_known_pose(
     K_inv = np.linalg.inv(K)
     rays_a = np.c_[a, np.ones(n)] @ K_inv.T  # normalised image coordinates, z = 1
     rays_b = np.c_[b, np.ones(n)] @ K_inv.T
-    P_a = np.eye(3, 4)
-    P_b = np.c_[R_ba, t_ba]
-    X_h = cv2.triangulatePoints(P_a, P_b, rays_a[:, :2].T.copy(), rays_b[:, :2].T.copy())
-    w = X_h[3]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        X_a = (X_h[:3] / w).T  # (N, 3) in camera a
+    X_a = triangulate_linear(rays_a[:, :2], rays_b[:, :2], R_ba, t_ba)
     finite = np.all(np.isfinite(X_a), axis=1)
     X_a[~finite] = 0.0
     X_b = X_a @ R_ba.T + t_ba
@@ -430,6 +425,51 @@ def triangulate_known_pose(
         pixels=a[keep].astype(np.float32),
         stats=stats,
     )
+
+
+def triangulate_linear(
+    normalised_a: np.ndarray, normalised_b: np.ndarray, R_ba: np.ndarray, t_ba: np.ndarray
+) -> np.ndarray:
+    """Linear two-view triangulation in camera a's frame (Hartley & Zisserman §12.2, inhomogeneous form).
+
+    Each correspondence gives the four linear equations of the DLT, x P_3 - P_1 = 0 and y P_3 - P_2 = 0
+    for P_a = [I | 0] and P_b = [R_ba | t_ba]; with the point's last coordinate set to 1 they are solved
+    in the least-squares sense through their 3 x 3 normal equations, by Cramer's rule, for all points at
+    once. ``cv2.triangulatePoints`` solves the homogeneous form with one SVD per point: the same point for
+    rays that meet (1e-12 m apart); for rays that pixel noise makes miss, OpenCV's point lies ~230 x
+    further from the truth than from ours at 0.5 px, ~120 x at 1 px (tests/sfm). It is written here for speed: 8 ms against 35-40 ms for the 40,000
+    correspondences of a dense pair (docs/sfm.md, "Triangulation with the known pose").
+
+    Args:
+        normalised_a: (N, 2) normalised image coordinates (K^-1 x, z = 1) in camera a.
+        normalised_b: (N, 2) the same points' normalised coordinates in camera b.
+        R_ba: (3, 3) rotation of camera a's frame into camera b's.
+        t_ba: (3,) translation of camera a's frame into camera b's.
+
+    Returns:
+        (N, 3) points in camera a's frame; rows of rays that meet nowhere (parallel) are not finite.
+
+    """
+    xa, ya = normalised_a[:, 0:1], normalised_a[:, 1:2]
+    xb, yb = normalised_b[:, 0:1], normalised_b[:, 1:2]
+    zeros, ones = np.zeros_like(xa), np.ones_like(xa)
+    rows = (
+        np.hstack([-ones, zeros, xa]),
+        np.hstack([zeros, -ones, ya]),
+        xb * R_ba[2] - R_ba[0],
+        yb * R_ba[2] - R_ba[1],
+    )
+    rhs = (0.0, 0.0, t_ba[0] - xb * t_ba[2], t_ba[1] - yb * t_ba[2])
+    # normal equations A^T A X = A^T b, column by column of the symmetric A^T A
+    c0, c1, c2 = (sum(r * r[:, i : i + 1] for r in rows) for i in range(3))
+    target = rows[2] * rhs[2] + rows[3] * rhs[3]
+    adjugate_rows = (np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1))
+    det = np.einsum("ni,ni->n", c0, adjugate_rows[0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (
+            np.stack([np.einsum("ni,ni->n", r, target) for r in adjugate_rows], axis=1)
+            / det[:, None]
+        )
 
 
 def _parallax_and_sigma(

@@ -18,6 +18,7 @@ from atr.sfm.triangulation import (
     epipolar_distances_px,
     fixation_depth_m,
     predict_on_fixation_plane,
+    triangulate_linear,
 )
 
 K = np.array([[800.0, 0.0, 640.0], [0.0, 800.0, 480.0], [0.0, 0.0, 1.0]])
@@ -59,6 +60,32 @@ def test_exact_projections_triangulate_exactly(cams) -> None:
     np.testing.assert_allclose(cloud.points_world_m, X, atol=1e-6)
     np.testing.assert_allclose(cloud.pixels, project(X, T_a), atol=1e-3)
     assert cloud.points_world_m.dtype == np.float64 and cloud.sigma_m.dtype == np.float32
+
+
+def test_linear_triangulation_agrees_with_opencv_on_noisy_rays(cams) -> None:
+    """OpenCV's triangulatePoints (homogeneous DLT, one SVD per point) is the reference."""
+    T_a, T_b = cams
+    X = ground_points(2000, seed=3)
+    rng = np.random.default_rng(4)
+    K_inv = np.linalg.inv(K)
+    rays = []
+    for T in (T_a, T_b):
+        px = project(X, T) + rng.normal(0.0, 1.0, (len(X), 2))  # 1 px noise: rays that miss
+        rays.append((np.c_[px, np.ones(len(X))] @ K_inv.T)[:, :2])
+    T_ba = relative_camera_pose(T_a, T_b)
+    ours = triangulate_linear(rays[0], rays[1], T_ba[:3, :3], T_ba[:3, 3])
+    X_h = cv2.triangulatePoints(np.eye(3, 4), T_ba[:3], rays[0].T.copy(), rays[1].T.copy())
+    opencv = (X_h[:3] / X_h[3]).T
+    spread = np.linalg.norm(opencv - (X - T_a[:3, 3]) @ T_a[:3, :3], axis=1)  # error from the noise
+    gap = np.linalg.norm(ours - opencv, axis=1)
+    assert np.median(gap) < 0.02 * np.median(spread)
+    assert np.percentile(gap, 99) < 0.1 * np.percentile(spread, 99)
+
+
+def test_parallel_rays_triangulate_to_no_finite_point() -> None:
+    ray = np.array([[0.1, -0.2]])
+    X = triangulate_linear(ray, ray, np.eye(3), np.array([1.0, 0.0, 0.0]))
+    assert not np.isfinite(X).all()
 
 
 def test_sigma_matches_monte_carlo_spread(cams) -> None:
