@@ -298,6 +298,50 @@ def claim_hough_groups(
 
 
 @numba.njit(cache=True)
+def sample_upright_sums(
+    m: np.ndarray, s: np.ndarray, samples: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """Centroids and the 2D Procrustes sums of each sample of correspondences (model m -> scene s).
+
+    The heading turning sample i's centred model points onto its scene points is
+    arctan2(cross[i], dot[i]) (``steps.upright_rigid_transform``). Sums run in index order from 0.0, as
+    numpy's mean over the sample axis and its sum over a sample's points do, so the headings are
+    bit-identical to the numpy form's.
+
+    Returns:
+        (I, 3) model centroids, (I, 3) scene centroids, (I,) sum of a.b and (I,) sum of a x b over the
+        sample's horizontal centred coordinates.
+
+    """
+    n_samples, k_pts = samples.shape
+    mc = np.empty((n_samples, 3))
+    sc = np.empty((n_samples, 3))
+    dot = np.empty(n_samples)
+    cross = np.empty(n_samples)
+    for i in range(n_samples):
+        for a in range(3):
+            msum = 0.0
+            ssum = 0.0
+            for k in range(k_pts):
+                msum += m[samples[i, k], a]
+                ssum += s[samples[i, k], a]
+            mc[i, a] = msum / k_pts
+            sc[i, a] = ssum / k_pts
+        d = 0.0
+        c = 0.0
+        for k in range(k_pts):
+            a0 = m[samples[i, k], 0] - mc[i, 0]
+            a1 = m[samples[i, k], 1] - mc[i, 1]
+            b0 = s[samples[i, k], 0] - sc[i, 0]
+            b1 = s[samples[i, k], 1] - sc[i, 1]
+            d += a0 * b0 + a1 * b1
+            c += a0 * b1 - a1 * b0
+        dot[i] = d
+        cross[i] = c
+    return mc, sc, dot, cross
+
+
+@numba.njit(cache=True)
 def sample_cross_covariances(
     m: np.ndarray, s: np.ndarray, samples: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
@@ -375,11 +419,14 @@ def kabsch_poses(
     return R, t
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def most_inliers(
     R: np.ndarray, t: np.ndarray, m: np.ndarray, s: np.ndarray, inlier2: float
 ) -> tuple[int, int]:  # pragma: no cover - compiled
     """The candidate transform (R[i], t[i]) with most inliers m -> s (squared residual < inlier2).
+
+    Candidates are counted in parallel, each on its own; the first with the most wins, as in a
+    sequential scan, so the result does not depend on the thread count.
 
     Returns:
         the first candidate with most inliers and its inlier count (-1, -1 without candidates).
@@ -388,8 +435,8 @@ def most_inliers(
     # one contiguous array per coordinate, so that the loop over correspondences vectorises
     mx, my, mz = m[:, 0].copy(), m[:, 1].copy(), m[:, 2].copy()
     sx, sy, sz = s[:, 0].copy(), s[:, 1].copy(), s[:, 2].copy()
-    best, best_count = -1, -1
-    for i in range(R.shape[0]):
+    counts = np.empty(R.shape[0], np.int64)
+    for i in numba.prange(R.shape[0]):
         r00, r01, r02, t0 = R[i, 0, 0], R[i, 0, 1], R[i, 0, 2], t[i, 0]
         r10, r11, r12, t1 = R[i, 1, 0], R[i, 1, 1], R[i, 1, 2], t[i, 1]
         r20, r21, r22, t2 = R[i, 2, 0], R[i, 2, 1], R[i, 2, 2], t[i, 2]
@@ -400,6 +447,8 @@ def most_inliers(
             d2 += (r10 * mx[j] + r11 * my[j] + r12 * mz[j] + t1 - sy[j]) ** 2
             d2 += (r20 * mx[j] + r21 * my[j] + r22 * mz[j] + t2 - sz[j]) ** 2
             count += d2 < inlier2
-        if count > best_count:
-            best, best_count = i, count
-    return best, best_count
+        counts[i] = count
+    if R.shape[0] == 0:
+        return -1, -1
+    best = int(np.argmax(counts))  # the first of the largest
+    return best, int(counts[best])

@@ -560,9 +560,8 @@ def ransac_per_group(
     if len(idx) == 0:
         return None
     if upright:
-        ms, ss = m[idx], s[idx]
-        mc, sc = ms.mean(axis=1), ss.mean(axis=1)
-        R = _turns_about_z(_upright_yaw(ms - mc[:, None], ss - sc[:, None]))
+        mc, sc, dot, cross = _kernels.sample_upright_sums(m, s, idx)
+        R = _turns_about_z(np.arctan2(cross, dot))
         t = sc - np.einsum("kij,kj->ki", R, mc)
     else:
         mc, sc, H = _kernels.sample_cross_covariances(m, s, idx)
