@@ -18,7 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from atr.sfm import SfmConfig, Surf, match_nndr, triangulate_known_pose
+from atr.sfm import SfmConfig, Surf, match_nndr, relative_camera_pose, triangulate_known_pose
 from atr.sfm.correspondences import (
     detect_gftt,
     gftt_klt_with_stats,
@@ -31,6 +31,7 @@ from atr.sfm.repeatability import matching_score, repeatability
 from atr.sfm.triangulation import (
     epipolar_distances_px,
     predict_on_fixation_plane,
+    triangulate_linear,
     undistort_pixels,
 )
 
@@ -159,7 +160,23 @@ def timing(label, img_a, img_b, K, T_a, T_b, repeats: int) -> None:
             f"points {n_sgm}"
         )
         print(f"    rectify + match      {t_sgm_corr:8.1f} ms")
+        # reference: the linear solve alone, ours against OpenCV's one-SVD-per-point triangulatePoints
+        T_ba = relative_camera_pose(T_a, T_b)
+        K_inv = np.linalg.inv(K)
+        ray_a = (np.c_[pa_d, np.ones(len(pa_d))] @ K_inv.T)[:, :2]
+        ray_b = (np.c_[pb_d, np.ones(len(pb_d))] @ K_inv.T)[:, :2]
+        t_linear = median_ms(
+            lambda: triangulate_linear(ray_a, ray_b, T_ba[:3, :3], T_ba[:3, 3]), repeats
+        )
+        t_opencv = median_ms(
+            lambda: cv2.triangulatePoints(np.eye(3, 4), T_ba[:3], ray_a.T.copy(), ray_b.T.copy()),
+            repeats,
+        )
         print(f"    triangulation        {t_sgm_tri:8.1f} ms")
+        print(
+            f"      linear solve       {t_linear:8.1f} ms   (reference: cv2.triangulatePoints "
+            f"{t_opencv:.1f} ms, ratio {t_linear / t_opencv:.2f})"
+        )
         print(
             f"    reconstruct (pair)   {t_sgm_all:8.1f} ms   ({t_sgm_all / t_all:.2f} x GFTT/KLT's)"
         )
