@@ -432,9 +432,8 @@ def test_ransac_matches_the_numpy_reference_and_draws_the_same_samples():
     assert n_found > 20  # the cases do find poses
 
 
-def test_kabsch_kernels_reproduce_numpys_intermediates_including_signed_zeros():
-    """Centroids, cross-covariances, rotations and translations equal numpy's bit for bit."""
-    rng = np.random.default_rng(10)
+def _sample_cases(rng):
+    """40 (model, scene, samples) triples: random spreads, and grids with signed zeros."""
     for trial in range(40):
         n, n_samples = int(rng.integers(3, 100)), int(rng.integers(1, 500))
         m = rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-3, 3)
@@ -444,7 +443,13 @@ def test_kabsch_kernels_reproduce_numpys_intermediates_including_signed_zeros():
             s = rng.integers(-2, 3, (n, 3)).astype(float)
             m[rng.random((n, 3)) < 0.3] = -0.0
             s[rng.random((n, 3)) < 0.3] = -0.0
-        idx = rng.integers(0, n, (n_samples, 3))
+        yield m, s, rng.integers(0, n, (n_samples, 3))
+
+
+def test_kabsch_kernels_reproduce_numpys_intermediates_including_signed_zeros():
+    """Centroids, cross-covariances, rotations and translations equal numpy's bit for bit."""
+    rng = np.random.default_rng(10)
+    for m, s, idx in _sample_cases(rng):
         ms, ss = m[idx], s[idx]
         mc, sc = ms.mean(1, keepdims=True), ss.mean(1, keepdims=True)
         H = np.einsum("ikj,ikl->ijl", ms - mc, ss - sc)
@@ -464,16 +469,7 @@ def test_kabsch_kernels_reproduce_numpys_intermediates_including_signed_zeros():
 def test_upright_sample_kernel_reproduces_numpys_headings_including_signed_zeros():
     """Centroids and headings of the upright RANSAC samples equal the numpy form's bit for bit."""
     rng = np.random.default_rng(11)
-    for trial in range(40):
-        n, n_samples = int(rng.integers(3, 100)), int(rng.integers(1, 500))
-        m = rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-3, 3)
-        s = rng.normal(size=(n, 3)) * 10
-        if trial % 2:  # a grid with signed zeros: the order of the sums decides the zeros' signs
-            m = rng.integers(-2, 3, (n, 3)) * 0.3
-            s = rng.integers(-2, 3, (n, 3)).astype(float)
-            m[rng.random((n, 3)) < 0.3] = -0.0
-            s[rng.random((n, 3)) < 0.3] = -0.0
-        idx = rng.integers(0, n, (n_samples, 3))
+    for m, s, idx in _sample_cases(rng):
         ms, ss = m[idx], s[idx]
         mc, sc = ms.mean(axis=1), ss.mean(axis=1)
         a, b = (ms - mc[:, None])[..., :2], (ss - sc[:, None])[..., :2]
