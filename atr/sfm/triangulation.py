@@ -437,8 +437,9 @@ def triangulate_linear(
     in the least-squares sense through their 3 x 3 normal equations, by Cramer's rule, for all points at
     once. ``cv2.triangulatePoints`` solves the homogeneous form with one SVD per point: the same point for
     rays that meet (1e-12 m apart); for rays that pixel noise makes miss, OpenCV's point lies ~230 x
-    further from the truth than from ours at 0.5 px, ~120 x at 1 px (tests/sfm). It is written here for speed: 8 ms against 35-40 ms for the 40,000
-    correspondences of a dense pair (docs/sfm.md, "Triangulation with the known pose").
+    further from the truth than from ours at 0.5 px, ~120 x at 1 px (tests/sfm). Written here for speed:
+    0.18-0.20 x OpenCV's time on a dense pair's correspondences (``bench/sfm.py``; docs/sfm.md,
+    "Triangulation with the known pose").
 
     Args:
         normalised_a: (N, 2) normalised image coordinates (K^-1 x, z = 1) in camera a.
