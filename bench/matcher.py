@@ -16,24 +16,13 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import time
 
 import numpy as np
 
+from atr.evaluation.timing import REFERENCE_WORKLOAD, reference_workload_ms
 from atr.recognition import STAGES, RecognitionConfig, build_template, recognize
 from atr.recognition import synthetic as syn
 from atr.recognition._backend import have_descriptor
-
-
-def _reference_ms() -> float:
-    rng = np.random.default_rng(0)
-    a = rng.random(1_000_000)
-    times = []
-    for _ in range(5):
-        t = time.perf_counter()
-        np.sort(a)
-        times.append((time.perf_counter() - t) * 1e3)
-    return statistics.median(times)
 
 
 def _clouds(mesh) -> dict[str, np.ndarray]:
@@ -75,8 +64,8 @@ def main() -> None:
         clouds = {k: v for k, v in clouds.items() if k in args.clouds}
     else:
         clouds = _clouds(mesh)
-    ref = _reference_ms()
-    print(f"reference (sort of 1M float64): {ref:.1f} ms")
+    ref = reference_workload_ms()
+    print(f"reference ({REFERENCE_WORKLOAD}): {ref:.1f} ms")
     print(
         "cloud  points  descriptor "
         + " ".join(f"{s:>9}" for s in STAGES)

@@ -114,6 +114,7 @@ class Plan:
     templates_3d: dict[str, list[Any]] = field(default_factory=dict)
     templates_2d: dict[str, list[Any]] = field(default_factory=dict)
     storage_kb: dict[tuple[str, str], float] = field(default_factory=dict)
+    reference_ms: dict[Any, float] = field(default_factory=dict)  # Flight -> the workload's time
 
 
 def _flights(args: argparse.Namespace) -> list[Any]:
@@ -289,13 +290,15 @@ def _storage_key(arm: Any) -> tuple[str, str]:
     return ("2d", arm.pipeline) if arm.is_2d else ("3d", arm.descriptor)
 
 
-def _reuse_storage(plan_: Plan, arm: Any, run_file: Path) -> None:
-    """A reused result's template storage, from its run file: templates are only built for runs to do, so
-    an invocation whose results are all current would otherwise report none.
+def _reuse_extra(plan_: Plan, flight: Any, arm: Any, run_file: Path) -> None:
+    """A reused result's template storage and reference time, from its run file: templates are only built
+    for runs to do, so an invocation whose results are all current would otherwise report none.
     """
-    kb = json.loads(run_file.read_text()).get("extra", {}).get("storage_kb")
-    if kb is not None:
-        plan_.storage_kb.setdefault(_storage_key(arm), kb)
+    extra = json.loads(run_file.read_text()).get("extra", {})
+    if extra.get("storage_kb") is not None:
+        plan_.storage_kb.setdefault(_storage_key(arm), extra["storage_kb"])
+    if extra.get("reference_ms") is not None:
+        plan_.reference_ms.setdefault(flight, extra["reference_ms"])
 
 
 # ------------------------------------------------------------------------------------------- running
@@ -307,11 +310,13 @@ def _log(text: str) -> None:
 
 def _work_in_process(
     flight: Any, arms: list[Any], config: Any, templates_3d: dict, templates_2d: dict, b2d: Any
-) -> dict[Any, list[Any]]:
-    """One flight through every arm, in a worker process."""
+) -> tuple[dict[Any, list[Any]], float]:
+    """One flight through every arm, in a worker process; and the reference workload's time there."""
     from atr.evaluation.runner import run_flight  # noqa: PLC0415
+    from atr.evaluation.timing import reference_workload_ms  # noqa: PLC0415
 
-    return run_flight(flight, arms, config, templates_3d, templates_2d, b2d)
+    reference_ms = reference_workload_ms()
+    return run_flight(flight, arms, config, templates_3d, templates_2d, b2d), reference_ms
 
 
 def _share_the_cores(workers: int) -> None:
@@ -497,6 +502,7 @@ def execute(
 
     """
     from atr.evaluation.io import load_run, save_run  # noqa: PLC0415
+    from atr.evaluation.timing import reference_workload_ms  # noqa: PLC0415
 
     runs_dir = plan_.results / "runs"
     results: dict[tuple[Any, Any], list[Any]] = {}
@@ -510,7 +516,7 @@ def execute(
                 todo.setdefault(flight, []).append(arm)
             else:
                 results[(flight, arm)] = records
-                _reuse_storage(plan_, arm, runs_dir / f"{key}.json")
+                _reuse_extra(plan_, flight, arm, runs_dir / f"{key}.json")
     total = len(plan_.flights) * len(plan_.arms)
     _log(
         f"atr eval: {total} runs ({len(plan_.flights)} flights x {len(plan_.arms)} pipelines/descriptors), "
@@ -523,8 +529,9 @@ def execute(
     started = time.monotonic()
     done = 0
 
-    def finish(flight: Any, out: dict[Any, list[Any]]) -> None:
+    def finish(flight: Any, out: dict[Any, list[Any]], reference_ms: float) -> None:
         nonlocal done
+        plan_.reference_ms[flight] = reference_ms
         for arm, records in out.items():
             save_run(
                 runs_dir / f"{keys[(flight, arm)]}.json",
@@ -532,7 +539,10 @@ def execute(
                 arm,
                 keys[(flight, arm)],
                 records,
-                {"storage_kb": plan_.storage_kb.get(_storage_key(arm))},
+                {
+                    "storage_kb": plan_.storage_kb.get(_storage_key(arm)),
+                    "reference_ms": reference_ms,
+                },
             )
             results[(flight, arm)] = records
         done += 1
@@ -547,13 +557,14 @@ def execute(
     if via_services:
         workdir = plan_.results / "services"
         for flight, arms in todo.items():
-            finish(flight, _work_via_services(flight, arms, plan_, workdir))
+            reference_ms = reference_workload_ms()
+            finish(flight, _work_via_services(flight, arms, plan_, workdir), reference_ms)
         return results
     if jobs <= 1:
         for flight, arms in todo.items():
             finish(
                 flight,
-                _work_in_process(
+                *_work_in_process(
                     flight, arms, plan_.config, plan_.templates_3d, plan_.templates_2d, plan_.b2d
                 ),
             )
@@ -581,7 +592,7 @@ def execute(
         while pending:
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
-                finish(pending.pop(future), future.result())
+                finish(pending.pop(future), *future.result())
     return results
 
 
@@ -698,6 +709,7 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
                         if records
                         else None,
                         "template_storage_kb": storage,
+                        "reference_ms": plan_.reference_ms.get(flight),
                         "false_positives_on": fp_on,
                     }
                 )

@@ -71,6 +71,21 @@ def _num(x: float | None, fmt: str = ".2f") -> str:
     return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else format(x, fmt)
 
 
+def _time_vs_reference(rows: Sequence[Mapping[str, Any]]) -> float | None:
+    """Time per scene over the reference workload's time, pooled over rows weighted by scenes; None when
+    no row recorded the reference.
+    """
+    timed = [
+        r
+        for r in rows
+        if r.get("reference_ms") and r.get("time_per_scene_ms") is not None and r.get("scenes")
+    ]
+    if not timed:
+        return None
+    ratios = [r["time_per_scene_ms"] / r["reference_ms"] for r in timed]
+    return float(np.average(ratios, weights=[r["scenes"] for r in timed]))
+
+
 def _arm_sort(label: str) -> tuple[int, str]:
     pipeline, _, descriptor = label.partition("/")
     return (PIPELINE_ORDER.index(pipeline) if pipeline in PIPELINE_ORDER else 99, descriptor)
@@ -528,6 +543,7 @@ def build_report(
         pool,
         select,
     )
+    from atr.evaluation.timing import REFERENCE_WORKLOAD  # noqa: PLC0415
 
     figs = Figures(out)
     clean = select(details, noise="none")
@@ -805,6 +821,10 @@ def build_report(
                 _num(first.get("template_storage_kb")),
                 f"*{_num(PAPER_TABLE_V_STORAGE_KB.get(paper_key))}*",
                 _num(v["time_per_scene_ms"] / 1000, ".3f"),
+                _num(
+                    _time_vs_reference(select(clean, pipeline=pipeline, descriptor=descriptor)),
+                    ".0f",
+                ),
                 f"*{_num(paper_time)}*",
                 _num(sum(points) / len(points), ".0f")
                 if points and not pipeline.startswith("2d")
@@ -822,6 +842,7 @@ def build_report(
                 "template KB",
                 "paper KB",
                 "s / scene",
+                "× reference",
                 "paper s / scene",
                 "cloud points (median)",
             ],
@@ -832,7 +853,10 @@ def build_report(
         "the template holds; 2D: all 12 templates' keypoints and descriptors). Time per scene: median over each run's scenes, pooled "
         "weighted by scenes; SfM includes the two-view reconstruction, LIDAR is the matcher alone, 2D is "
         "detection, description and matching against the 12 templates. The paper's times are on an i7 at "
-        "2.6 GHz; ours on a 2-core VM (its load during the run: see the discussion).",
+        "2.6 GHz; ours on a 2-core VM (its load during the run: see the discussion). × reference: the time "
+        f"per scene over a fixed workload ({REFERENCE_WORKLOAD}) timed by the same worker just before each "
+        "flight, pooled like the times, so that runs on other machines, or in other hours of a shared one, "
+        "compare (– for results computed before it was recorded).",
         "",
         figs.stacked("fig8_stages", "Processing time per stage (Fig. 8)", stages),
     ]

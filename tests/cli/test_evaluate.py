@@ -56,16 +56,20 @@ def test_false_positives_are_counted_by_the_vehicle_under_the_best_hypothesis():
     }
 
 
-def test_an_invocation_whose_results_are_all_current_keeps_their_template_storage(tmp_path):
+def test_an_invocation_whose_results_are_all_current_keeps_their_storage_and_reference_time(
+    tmp_path,
+):
     def details() -> dict:
         args = [*SMALL_FLIGHT, "--frames", "3", "--results", str(tmp_path)]
         p = plan(build_parser().parse_args(args))
         return rows(p, execute(p))[1][0]
 
-    first = details()  # computes the run and builds its templates
-    again = details()  # reuses the run file: no template is built
+    first = details()  # computes the run, builds its templates, times the reference workload
+    again = details()  # reuses the run file: no template is built, nothing is timed
     assert first["template_storage_kb"] > 0
     assert again["template_storage_kb"] == first["template_storage_kb"]
+    assert first["reference_ms"] > 0
+    assert again["reference_ms"] == first["reference_ms"]
     assert again["outcomes"] == first["outcomes"]
 
 

@@ -17,6 +17,7 @@ from cli.report import (
     _examples_section,
     _false_positives_section,
     _scene_outcomes,
+    _time_vs_reference,
     example_scenes,
 )
 
@@ -162,3 +163,17 @@ def test_false_positives_are_pooled_per_arm_by_what_they_sit_on():
     # a result written before the field existed gets no section rather than a wrong one
     del rows[0]["false_positives_on"]
     assert _false_positives_section(rows) == []
+
+
+def test_time_over_the_reference_is_pooled_by_scenes_and_skips_rows_without_one():
+    rows = [
+        {"time_per_scene_ms": 600.0, "reference_ms": 10.0, "scenes": 30},  # 60 x
+        {"time_per_scene_ms": 300.0, "reference_ms": 20.0, "scenes": 10},  # 15 x
+        {
+            "time_per_scene_ms": 900.0,
+            "reference_ms": None,
+            "scenes": 50,
+        },  # computed before it was kept
+    ]
+    assert _time_vs_reference(rows) == (60.0 * 30 + 15.0 * 10) / 40
+    assert _time_vs_reference(rows[2:]) is None

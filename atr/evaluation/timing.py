@@ -1,0 +1,28 @@
+"""A fixed workload timed beside the evaluation, so its time figures compare across machines and runs.
+
+The same code on the same machine can take tens of per cent more or less time within an hour when the
+machine is shared (docs/evaluation/discussion.md): a per-scene time alone cannot tell a slower change from a
+slower hour. Timing a workload that never changes in the same process, just before the work, gives the
+ratio that can.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+REFERENCE_WORKLOAD = "numpy sort of 1,000,000 float64, median of 5"
+"""What ``reference_workload_ms`` times (as the reports name it)."""
+
+
+def reference_workload_ms(repeats: int = 5) -> float:
+    """Median wall time of sorting the same 1,000,000 random float64 values, milliseconds."""
+    values = np.random.default_rng(0).random(1_000_000)
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        np.sort(values)
+        times.append((time.perf_counter() - start) * 1e3)
+    return statistics.median(times)
