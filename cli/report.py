@@ -823,7 +823,7 @@ def build_report(
                 _num(v["time_per_scene_ms"] / 1000, ".3f"),
                 _num(
                     _time_vs_reference(select(clean, pipeline=pipeline, descriptor=descriptor)),
-                    ".0f",
+                    ".1f",
                 ),
                 f"*{_num(paper_time)}*",
                 _num(sum(points) / len(points), ".0f")
@@ -855,8 +855,9 @@ def build_report(
         "detection, description and matching against the 12 templates. The paper's times are on an i7 at "
         "2.6 GHz; ours on a 2-core VM (its load during the run: see the discussion). × reference: the time "
         f"per scene over a fixed workload ({REFERENCE_WORKLOAD}) timed by the same worker just before each "
-        "flight, pooled like the times, so that runs on other machines, or in other hours of a shared one, "
-        "compare (– for results computed before it was recorded).",
+        "flight, pooled like the times, so that runs in other hours of a shared machine compare; across "
+        "machines only roughly, as numpy's sort takes a vector path where the CPU offers one (– for results "
+        "computed before it was recorded).",
         "",
         figs.stacked("fig8_stages", "Processing time per stage (Fig. 8)", stages),
     ]
