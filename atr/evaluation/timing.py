@@ -1,9 +1,10 @@
-"""A fixed workload timed beside the evaluation, so its time figures compare across machines and runs.
+"""A fixed workload timed beside the evaluation, so that its time figures compare across runs.
 
 The same code on the same machine can take tens of per cent more or less time within an hour when the
 machine is shared (docs/evaluation/discussion.md): a per-scene time alone cannot tell a slower change from a
 slower hour. Timing a workload that never changes in the same process, just before the work, gives the
-ratio that can.
+ratio that can. Across machines the ratio is a rough guide only: numpy's sort takes a vector path where the
+CPU offers one.
 """
 
 from __future__ import annotations
