@@ -8,6 +8,7 @@ larger 200 m cell below).
     python bench/tune_recognition.py resfm --from DIR --cache DIR2 [--set sfm_field=value ...]
     python bench/tune_recognition.py eval  [--cache DIR] [--descriptor shot] [--source sfm|lidar]
                                            [--set field=value ...] [--scenario 1 ...] [--verbose]
+                                           [--targets t72 ifv truck6x6]
 
 ``make`` renders frame pairs (k, k + pair_gap) of scenarios 1 (runs 1-4), 2 (runs 1-4) and 3 with the
 simulator exactly as ``simulate_flight`` does (the same world, orbit, renderer and LIDAR generator seeds),
@@ -23,9 +24,9 @@ docs/recognition.md, "200 m on a larger sample"): ``make --scenario 3 --pairs 4 
 102 ... 110 --cache DIR``, and with ``--pair-gap 2`` pairs of frames two intervals apart (the second
 frame within one frame of the gap-1 pair's).
 
-``eval`` builds the templates of the T-72 and its confusers (IFV, 6x6 truck) as the template store does,
-runs ``atr.recognition.recognize`` on every cached cloud and scores it with ``atr.evaluation.metrics``
-(§III-C: TP within 2 m of the T-72; FP a T-72 hypothesis without target or > 2 m off; FN none). With
+``eval`` builds the templates of the T-72 and its confusers (IFV, 6x6 truck) as the template store does
+(``--targets`` picks a subset, e.g. the T-72 alone), runs ``atr.recognition.recognize`` on every cached
+cloud and scores it with ``atr.evaluation.metrics`` (§III-C: TP within 2 m of the T-72; FP a T-72 hypothesis without target or > 2 m off; FN none). With
 ``--verbose`` it prints every scene's detections and ends with a tally of why the others failed
 (``why_not_true_positive``) and of what the false positives' T-72 fits sit on (an IFV, the 6x6 truck, a
 car, or elsewhere; each world rebuilt without rendering).
@@ -214,7 +215,7 @@ def load_scenes(cache: Path, scenarios: list[int], source: str) -> list[dict]:
     return scenes
 
 
-def build_templates(config, descriptor: str) -> list:
+def build_templates(config, descriptor: str, targets: tuple[str, ...] = TARGETS) -> list:
     import hashlib
     import pickle
 
@@ -223,12 +224,12 @@ def build_templates(config, descriptor: str) -> list:
     from atr.sim.vehicles import VEHICLES
 
     cfg = dataclasses.replace(config, descriptor=descriptor)
-    key = hashlib.sha256(repr((cfg, TEMPLATE_VERSION)).encode()).hexdigest()[:16]
+    key = hashlib.sha256(repr((cfg, TEMPLATE_VERSION, targets)).encode()).hexdigest()[:16]
     path = DEFAULT_CACHE / "templates" / f"{descriptor}-{key}.pkl"
     if path.exists():
         return pickle.loads(path.read_bytes())
     out = []
-    for t in TARGETS:
+    for t in targets:
         mesh = VEHICLES[t]()
         out.append(build_template(mesh.vertices, mesh.triangles, t, descriptor, cfg))
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -436,7 +437,7 @@ def eval_cmd(args: argparse.Namespace) -> None:
     if args.limit:
         scenes = scenes[: args.limit]
     t = time.perf_counter()
-    templates = build_templates(config, args.descriptor)
+    templates = build_templates(config, args.descriptor, tuple(args.targets))
     print(
         f"{len(templates)} templates in {time.perf_counter() - t:.1f} s; {len(scenes)} scenes "
         f"({args.source}, {args.descriptor}) {' '.join(args.set)}",
@@ -499,6 +500,13 @@ def main() -> int:
         action="extend",
         default=[],
         help="RecognitionConfig overrides field=value",
+    )
+    ev.add_argument(
+        "--targets",
+        nargs="+",
+        default=list(TARGETS),
+        choices=TARGETS,
+        help="templates to match (default: the T-72 and its confusers); the T-72 is scored",
     )
     ev.add_argument("--limit", type=int, default=0)
     ev.add_argument("--verbose", action="store_true")
