@@ -27,8 +27,8 @@ frame within one frame of the gap-1 pair's).
 ``eval`` builds the templates of the T-72 and its confusers (IFV, 6x6 truck) as the template store does
 (``--targets`` picks a subset, e.g. the T-72 alone), runs ``atr.recognition.recognize`` on every cached
 cloud and scores it with ``atr.evaluation.metrics`` (§III-C: TP within 2 m of the T-72; FP a T-72
-hypothesis without target or > 2 m off; FN none). With ``--verbose`` it prints every scene's detections and ends with a tally of why the others failed
-(``why_not_true_positive``) and of what the false positives' T-72 fits sit on (an IFV, the 6x6 truck, a
+hypothesis without target or > 2 m off; FN none). With ``--verbose`` it prints every scene's detections
+and ends with a tally of why the others failed (``why_not_true_positive``) and of what the false positives' T-72 fits sit on (an IFV, the 6x6 truck, a
 car, or elsewhere; each world rebuilt without rendering).
 """
 
