@@ -34,6 +34,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "eval": ("evaluate", "run the paper's experiments and score them"),
     "report": ("report", "write the evaluation report to docs/evaluation"),
     "certs": ("certs", "make a deployment's TLS certificates"),
+    "keygen": ("keygen", "make an Ed25519 key pair for sealing recordings"),
+    "seal": ("seal", "seal a recording: a signed manifest of every message"),
+    "verify": ("verify", "verify a sealed recording against a trusted public key"),
 }
 
 
