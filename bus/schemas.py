@@ -1,6 +1,8 @@
 """The message registry: one JSON Schema per message type in `schemas/`, the single source of truth.
 
-Array fields use this project's `ndarray` keyword (allowed dtypes, shape with null for any length, finite or not).
+Array fields use this project's `ndarray` keyword (allowed dtypes, shape with null for any length, finite or not,
+and optionally `min_shape` (least length of each axis), `max_abs` (the largest magnitude a value may have: the
+physical range of the field) and `rule` (what the shape means, said when it does not match)).
 `validator(name)` returns a jsonschema validator that checks `ndarray` fields on the numpy arrays themselves,
 so validation never copies an array payload.
 """
@@ -61,12 +63,33 @@ def _check_ndarray(validator: Any, spec: dict[str, Any], instance: Any, schema: 
             for want, got in zip(shape, instance.shape, strict=True)
         ):
             expected = tuple("N" if s is None else s for s in shape)
-            yield jsonschema.ValidationError(f"shape {instance.shape} does not match {expected}")
+            rule = f" ({spec['rule']})" if "rule" in spec else ""
+            yield jsonschema.ValidationError(
+                f"shape {instance.shape} does not match {expected}{rule}"
+            )
             return
+    least = spec.get("min_shape")
+    if least is not None and any(got < want for want, got in zip(least, instance.shape)):
+        yield jsonschema.ValidationError(
+            f"shape {instance.shape} is too small; expected at least {tuple(least)}"
+        )
+        return
     if spec.get("finite") and instance.dtype.kind == "f" and not np.isfinite(instance).all():
         yield jsonschema.ValidationError(
             f"array of shape {instance.shape} has NaN or infinite values"
         )
+        return
+    bound = spec.get("max_abs")
+    if bound is not None and instance.size:
+        # Finite but absurd values (1e30 m) would overflow the grids and integer casts downstream.
+        low, high = instance.min(), instance.max()
+        if low < -bound or high > bound:
+            worst = low if -low > high else high
+            index = tuple(int(i) for i in np.argwhere(instance == worst)[0])
+            yield jsonschema.ValidationError(
+                f"value {float(worst):g} at index {list(index)} is outside the allowed range "
+                f"[{-bound:g}, {bound:g}]"
+            )
 
 
 def _is_object(checker: Any, instance: Any) -> bool:

@@ -227,3 +227,60 @@ def test_unknown_key_is_refused():
 
     with pytest.raises(BusError):
         keys.message_type("atr/uav1/camera/image/extra")
+
+
+@pytest.mark.parametrize(
+    ("name", "field", "path"),
+    [
+        ("PointCloud", "points_m", "points_m"),
+        ("CameraPose", "T_world_cam", "T_world_cam"),
+        ("ImuBatch", "gyro_radps", "gyro_radps"),
+        ("Detections", "T_world_target", "detections/0/T_world_target"),
+    ],
+)
+def test_finite_but_absurd_values_are_refused_naming_field_value_and_range(name, field, path):
+    message = example(name)
+    if name == "Detections":
+        target = message["detections"][0]
+    else:
+        target = message
+    array = np.array(target[field])
+    array.flat[1] = 1e30
+    target[field] = array
+    with pytest.raises(SchemaError) as info:
+        codec.encode(name, message)
+    text = str(info.value)
+    assert path in text and "1e+30" in text and "allowed range" in text
+    payload = codec.pack(message)
+    with pytest.raises(SchemaError, match="1e\\+30"):
+        codec.decode(name, payload)
+
+
+def test_values_at_the_bound_are_accepted():
+    message = example("PointCloud")
+    message["points_m"] = np.array([[1e5, -1e5, 0.0]])
+    message["sigma_m"] = np.zeros(1)
+    codec.decode("PointCloud", codec.encode("PointCloud", message))
+
+
+@pytest.mark.parametrize("shape", [(0, 0), (0, 0, 3), (8, 64, 3)])
+def test_an_empty_or_tiny_image_is_refused_with_its_shape(shape):
+    message = example("Image") | {"data": np.zeros(shape, np.uint8)}
+    with pytest.raises(SchemaError) as info:
+        codec.decode("Image", codec.pack(message))
+    assert "data" in str(info.value) and str(shape) in str(info.value)
+    assert "at least (16, 16)" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("encoding", "shape", "expected"),
+    [("rgb8", (48, 64), "rgb8 is (H, W, 3)"), ("mono8", (48, 64, 3), "mono8 is (H, W)")],
+)
+def test_image_encoding_and_shape_must_agree(encoding, shape, expected):
+    message = example("Image") | {"encoding": encoding, "data": np.zeros(shape, np.uint8)}
+    with pytest.raises(SchemaError) as info:
+        codec.encode("Image", message)
+    assert "data" in str(info.value) and str(shape) in str(info.value)
+    assert expected in str(info.value)
+    agreeing = (48, 64, 3) if encoding == "rgb8" else (48, 64)
+    codec.encode("Image", message | {"data": np.zeros(agreeing, np.uint8)})
