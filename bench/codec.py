@@ -125,6 +125,7 @@ def main() -> None:
     for level, background in ((1, False), (1, True), (3, True), (-1, True)):
 
         def write(level: int = level, background: bool = background) -> int:
+            path.unlink(missing_ok=True)  # the writer never overwrites
             w = ChunkedWriter(path, zstd_level=level, background=background)
             cid = w.add_channel("t", "msgpack", 0)
             for i in range(30):

@@ -19,12 +19,14 @@ none).
 
 from __future__ import annotations
 
+import heapq
 import io
 import os
 import queue
 import struct
 import threading
 import zlib
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -33,6 +35,7 @@ import zstandard
 from mcap.data_stream import ReadDataStream, RecordBuilder
 from mcap.exceptions import InvalidMagic, McapError
 from mcap.opcode import Opcode
+from mcap.reader import make_reader
 from mcap.records import (
     Channel,
     Chunk,
@@ -42,6 +45,8 @@ from mcap.records import (
     Header,
     Message,
     MessageIndex,
+    Metadata,
+    MetadataIndex,
     Schema,
     Statistics,
     SummaryOffset,
@@ -59,6 +64,7 @@ _MESSAGE_HEAD = struct.Struct("<BQHIQQ")
 _CHUNK_HEAD = struct.Struct("<BQQQQII4sQ")
 _U32 = 0xFFFFFFFF
 _U64 = 0xFFFFFFFFFFFFFFFF
+MAX_ID = 0xFFFF  # schema and channel ids are 16-bit in MCAP
 
 
 def _clamp(value: int, upper: int) -> int:
@@ -76,9 +82,11 @@ class ChunkedWriter:
         zstd_threads: zstd worker threads (0 = compress in the calling thread).
         background: compress and write chunks on a thread of the writer's own, so that filling the
             next chunk overlaps with compressing the last (zstd and crc32 release the GIL).
+        metadata: MCAP Metadata records (name -> string map) written right after the Header.
 
     Raises:
-        RecordingError: the output cannot be opened.
+        RecordingError: the output cannot be opened, or a file already exists at `out` (it is
+            created exclusively: a writer never truncates or overwrites a file).
 
     """
 
@@ -90,12 +98,18 @@ class ChunkedWriter:
         zstd_level: int = 1,
         zstd_threads: int = 0,
         background: bool = False,
+        metadata: dict[str, dict[str, str]] | None = None,
     ) -> None:
         if chunk_size_bytes <= 0:
             raise RecordingError(f"chunk size {chunk_size_bytes} bytes must be > 0")
         self._owns = not hasattr(out, "write")
         try:
-            self._f: IO[bytes] = open(out, "wb") if self._owns else out  # type: ignore[arg-type]
+            # 'xb': exclusive creation, so no code path can truncate an existing recording.
+            self._f: IO[bytes] = open(out, "xb") if self._owns else out  # type: ignore[arg-type]
+        except FileExistsError as exc:
+            raise RecordingError(
+                f"{out} already exists; a recording is never overwritten (choose another path)"
+            ) from exc
         except OSError as exc:
             raise RecordingError(f"cannot open {out} for writing: {exc}") from exc
         self._chunk_size = chunk_size_bytes
@@ -123,6 +137,13 @@ class ChunkedWriter:
         self._closed = False
         self._failure: BaseException | None = None
         self._write_records(lambda b: b.write(MAGIC), Header(PROFILE, LIBRARY).write)
+        self._metadata_indexes: list[MetadataIndex] = []
+        for name, values in (metadata or {}).items():
+            record = _record_bytes(Metadata(name=name, metadata=dict(values)))
+            self._metadata_indexes.append(MetadataIndex(self._pos, len(record), name))
+            self._f.write(record)
+            self._pos += len(record)
+            self.statistics.metadata_count += 1
         self._jobs: queue.Queue[Any] | None = queue.Queue(maxsize=2) if background else None
         self._thread = None
         if self._jobs is not None:
@@ -134,7 +155,14 @@ class ChunkedWriter:
     # Public interface --------------------------------------------------------------------------
 
     def add_schema(self, name: str, encoding: str, data: bytes) -> int:
-        """Define a schema; returns its id (1, 2, ...)."""
+        """Define a schema; returns its id (1, 2, ...).
+
+        Raises:
+            RecordingError: the file already holds 65,535 schemas (MCAP ids are 16-bit).
+
+        """
+        if len(self._schemas) >= MAX_ID:
+            raise RecordingError(f"schema {name!r}: the file already holds {MAX_ID} schemas")
         schema = Schema(id=len(self._schemas) + 1, name=name, encoding=encoding, data=data)
         self._schemas[schema.id] = schema
         self.statistics.schema_count += 1
@@ -148,7 +176,18 @@ class ChunkedWriter:
         schema_id: int,
         metadata: dict[str, str] | None = None,
     ) -> int:
-        """Define a channel (schema_id 0 = no schema); returns its id (1, 2, ...)."""
+        """Define a channel (schema_id 0 = no schema); returns its id (1, 2, ...).
+
+        Raises:
+            RecordingError: the schema is not defined, or the file already holds 65,535 channels
+                (MCAP ids are 16-bit); nothing is written then.
+
+        """
+        if len(self._channels) >= MAX_ID:
+            raise RecordingError(
+                f"channel {topic!r}: the file already holds {MAX_ID} channels, "
+                "the most MCAP's 16-bit channel ids allow"
+            )
         if schema_id != 0 and schema_id not in self._schemas:
             raise RecordingError(f"channel {topic!r} refers to undefined schema id {schema_id}")
         channel = Channel(
@@ -166,8 +205,27 @@ class ChunkedWriter:
     def add_message(
         self, channel_id: int, log_time: int, publish_time: int, sequence: int, data: bytes
     ) -> None:
-        """Append a message to the current chunk (times in ns; sequence kept modulo 2**32)."""
+        """Append a message to the current chunk (times in ns; sequence kept modulo 2**32).
+
+        Raises:
+            RecordingError: the channel is not defined (nothing is written then), or an earlier
+                background write failed.
+
+        """
+        if channel_id not in self._channels:
+            raise RecordingError(f"message on channel id {channel_id}, which is not defined")
+        if not isinstance(data, bytes | bytearray | memoryview):
+            raise RecordingError(f"message data is {type(data).__name__}, expected bytes")
         log_time = _clamp(log_time, _U64)
+        # framed before any state changes, so a bad argument leaves the chunk as it was
+        head = _MESSAGE_HEAD.pack(
+            Opcode.MESSAGE,
+            22 + len(data),
+            channel_id,
+            int(sequence) & _U32,
+            log_time,
+            _clamp(publish_time, _U64),
+        )
         stats = self.statistics
         if self._chunk_messages == 0:
             self._chunk_start = self._chunk_end = log_time
@@ -184,18 +242,16 @@ class ChunkedWriter:
             stats.channel_message_counts.get(channel_id, 0) + 1
         )
         self._index.setdefault(channel_id, []).append((log_time, len(self._buf)))
-        self._buf += _MESSAGE_HEAD.pack(
-            Opcode.MESSAGE,
-            22 + len(data),
-            channel_id,
-            int(sequence) & _U32,
-            log_time,
-            _clamp(publish_time, _U64),
-        )
+        self._buf += head
         self._buf += data
         self._chunk_messages += 1
         if len(self._buf) > self._chunk_size:
             self.flush()
+
+    @property
+    def failure(self) -> BaseException | None:
+        """The error that stopped the background writes (None while the file is writable)."""
+        return self._failure
 
     @property
     def pending_messages(self) -> int:
@@ -315,6 +371,7 @@ class ChunkedWriter:
         group(Opcode.CHANNEL, list(self._channels.values()))
         group(Opcode.STATISTICS, [self.statistics])
         group(Opcode.CHUNK_INDEX, self._chunk_indexes)
+        group(Opcode.METADATA_INDEX, self._metadata_indexes)
         offsets_start = summary_start + builder.count
         for offset in groups:
             offset.write(builder)
@@ -401,6 +458,31 @@ class _Walk:
     complete_up_to: int = 0  # offset after the last record read whole
 
 
+@dataclass
+class _Summary:
+    """The definitions and chunk offsets a file's summary section states."""
+
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, Channel] = field(default_factory=dict)
+    chunk_offsets: list[int] = field(default_factory=list)
+
+
+def _read_summary(path: str | Path) -> _Summary | None:
+    """The summary section of `path`, or None when it has none that can be read."""
+    try:
+        with open(path, "rb") as f:
+            summary = make_reader(f).get_summary()
+    except Exception:  # noqa: BLE001 - the mcap reader raises many types on a damaged file
+        return None
+    if summary is None:
+        return None
+    return _Summary(
+        schemas=dict(summary.schemas),
+        channels=dict(summary.channels),
+        chunk_offsets=sorted(ci.chunk_start_offset for ci in summary.chunk_indexes),
+    )
+
+
 def _chunk_records(chunk: Chunk, where: str, problems: list[str]) -> list[Any] | None:
     try:
         stream, length = get_chunk_data_stream(chunk, validate_crc=False)
@@ -439,13 +521,22 @@ def _chunk_records(chunk: Chunk, where: str, problems: list[str]) -> list[Any] |
 
 
 def _walk(
-    path: str | Path, *, on_message: Any = None, stop_at_first_problem: bool = False
+    path: str | Path,
+    *,
+    on_message: Any = None,
+    stop_at_first_problem: bool = False,
+    summary: _Summary | None = None,
 ) -> _Walk:
     """One pass over the records of `path`; `on_message(schema, channel, message)` is called in file
     order.
+
+    With `summary` (what the file's own summary section says), a message whose channel was defined
+    in a chunk that cannot be read still finds its channel there, and after a record that cannot be
+    read the walk goes on at the next chunk the summary's chunk indexes locate.
     """
     w = _Walk()
     size = os.path.getsize(path)
+    fallback = summary or _Summary()
     with open(path, "rb") as f:
         strict = _StrictStream(f)
         reader = StreamReader(
@@ -464,19 +555,22 @@ def _walk(
                 record = next(records)
             except StopIteration:
                 break
-            except _TruncatedError as exc:
-                w.problems.append(f"truncated: record at offset {start}: {exc}")
-                break
-            except InvalidMagic as exc:
-                where = "the start" if w.complete_up_to == 0 else "the end"
-                w.problems.append(f"bad magic at {where} of the file: {exc}")
-                break
-            except McapError as exc:
-                w.problems.append(f"unreadable record at offset {start}: {exc}")
-                break
-            except (struct.error, UnicodeDecodeError, ValueError) as exc:
-                w.problems.append(f"malformed record at offset {start}: {exc}")
-                break
+            except (McapError, struct.error, UnicodeDecodeError, ValueError) as exc:
+                resume = next((o for o in fallback.chunk_offsets if o > start), None)
+                if resume is None or stop_at_first_problem or in_summary:
+                    _read_problem(w, exc, start)
+                    break
+                w.problems.append(
+                    f"unreadable record at offset {start} ({exc}); going on at the chunk at "
+                    f"offset {resume} (from the summary's chunk index)"
+                )
+                f.seek(resume)
+                strict = _StrictStream(f)
+                strict.offset = start = resume
+                records = StreamReader(
+                    strict, skip_magic=True, emit_chunks=True, record_size_limit=size
+                ).records
+                continue
             end = strict.offset
             at = f"{type(record).__name__} at offset {start}"
             if isinstance(record, (Schema, Channel, Message, Chunk)) and in_summary:
@@ -491,7 +585,7 @@ def _walk(
             elif isinstance(record, Channel):
                 _define_channel(w, record, at)
             elif isinstance(record, Message):
-                _take_message(w, record, at, on_message)
+                _take_message(w, record, at, on_message, fallback)
             elif isinstance(record, Chunk):
                 n_chunk += 1
                 where = f"chunk #{n_chunk} at offset {start}"
@@ -511,7 +605,7 @@ def _walk(
                     elif isinstance(item, Channel):
                         _define_channel(w, item, f"{where}: channel {item.id}")
                     else:
-                        _take_message(w, item, f"{where}: message", on_message)
+                        _take_message(w, item, f"{where}: message", on_message, fallback)
                         chunk_message_offsets.setdefault(item.channel_id, []).append(
                             (item.log_time, inner_offset)
                         )
@@ -561,6 +655,18 @@ def _walk(
     return w
 
 
+def _read_problem(w: _Walk, exc: BaseException, start: int) -> None:
+    if isinstance(exc, _TruncatedError):
+        w.problems.append(f"truncated: record at offset {start}: {exc}")
+    elif isinstance(exc, InvalidMagic):
+        where = "the start" if w.complete_up_to == 0 else "the end"
+        w.problems.append(f"bad magic at {where} of the file: {exc}")
+    elif isinstance(exc, McapError):
+        w.problems.append(f"unreadable record at offset {start}: {exc}")
+    else:
+        w.problems.append(f"malformed record at offset {start}: {exc}")
+
+
 def _define_channel(w: _Walk, channel: Channel, at: str) -> None:
     if channel.schema_id != 0 and channel.schema_id not in w.schemas:
         w.problems.append(
@@ -570,8 +676,16 @@ def _define_channel(w: _Walk, channel: Channel, at: str) -> None:
     w.channels[channel.id] = channel
 
 
-def _take_message(w: _Walk, message: Message, at: str, on_message: Any) -> None:
+def _take_message(
+    w: _Walk, message: Message, at: str, on_message: Any, fallback: _Summary | None = None
+) -> None:
     channel = w.channels.get(message.channel_id)
+    if channel is None and fallback is not None:
+        channel = fallback.channels.get(message.channel_id)
+        if channel is not None:  # defined in a chunk that cannot be read: the summary's copy
+            w.channels[channel.id] = channel
+            if channel.schema_id in fallback.schemas:
+                w.schemas.setdefault(channel.schema_id, fallback.schemas[channel.schema_id])
     if channel is None:
         w.problems.append(
             f"{at}: message on channel id {message.channel_id}, not defined before it"
@@ -582,7 +696,10 @@ def _take_message(w: _Walk, message: Message, at: str, on_message: Any) -> None:
     w.start_time = message.log_time if w.start_time is None else min(w.start_time, message.log_time)
     w.end_time = message.log_time if w.end_time is None else max(w.end_time, message.log_time)
     if on_message is not None:
-        on_message(w.schemas.get(channel.schema_id), channel, message)
+        schema = w.schemas.get(channel.schema_id)
+        if schema is None and fallback is not None:
+            schema = fallback.schemas.get(channel.schema_id)
+        on_message(schema, channel, message)
 
 
 def _check_message_index(
@@ -691,20 +808,112 @@ def _check_summary(w: _Walk, path: str | Path) -> None:
                 )
 
 
-def check(path: str | Path) -> list[str]:
-    """Validate an MCAP file; returns the problems found (empty when the file is sound).
+# Segments --------------------------------------------------------------------------------------
 
-    Checked: magic at both ends; every channel's schema and every message's channel defined before
-    use; chunk decompression, uncompressed sizes and CRCs, chunk time ranges; message indexes
-    against their chunk; log times non-decreasing within chunks and indexes; DataEnd and Footer
-    present; summary CRC; summary schemas and channels equal to the data section's; chunk indexes
-    and statistics consistent with the data.
+SEGMENT_METADATA = "atr.segment"
+
+
+def segment_path(path: str | Path, index: int) -> Path:
+    """File of segment `index` of the recording `path`: `path` itself for 0, else the index before
+    the suffix (`flight.mcap` -> `flight.1.mcap`, `flight.2.mcap`, ...).
+    """
+    path = Path(path)
+    return path if index == 0 else path.with_name(f"{path.stem}.{index}{path.suffix}")
+
+
+def segments(path: str | Path) -> list[Path]:
+    """The files of the recording whose first segment is `path`: `path`, then `flight.1.mcap`,
+    `flight.2.mcap`, ... for as long as they exist (a restarted recorder writes the next one).
+
+    Raises:
+        RecordingError: `path` does not exist.
+
+    """
+    _require(path)
+    found = [Path(path)]
+    while segment_path(path, len(found)).is_file():
+        found.append(segment_path(path, len(found)))
+    return found
+
+
+def is_closed(path: str | Path) -> bool:
+    """True when `path` ends with MCAP's closing magic (its writer closed it)."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(0, os.SEEK_END)
+            if f.tell() < 2 * len(MAGIC):
+                return False
+            f.seek(-len(MAGIC), os.SEEK_END)
+            return f.read(len(MAGIC)) == MAGIC
+    except OSError:
+        return False
+
+
+def create_segment(path: str | Path, **writer_args: Any) -> tuple[ChunkedWriter, Path, int]:
+    """A writer on the next free segment of the recording `path`: `path` itself when it does not
+    exist, else the segment after the last one. A continuing segment carries a Metadata record
+    `atr.segment` saying which file it continues and whether that one was closed or cut.
+
+    Args:
+        path: the recording (its first segment).
+        **writer_args: passed to `ChunkedWriter`.
+
+    Returns:
+        The writer, the file it writes and its segment index (0 for the first).
+
+    Raises:
+        RecordingError: the file cannot be created.
+
+    """
+    path = Path(path)
+    for _ in range(1000):  # another writer may take a name between our look and our create
+        index = len(segments(path)) if path.is_file() else 0
+        out = segment_path(path, index)
+        metadata = None
+        if index > 0:
+            previous = segment_path(path, index - 1)
+            metadata = {
+                SEGMENT_METADATA: {
+                    "recording": path.name,
+                    "segment": str(index),
+                    "continues": previous.name,
+                    "previous_closed": str(is_closed(previous)).lower(),
+                }
+            }
+        try:
+            return ChunkedWriter(out, metadata=metadata, **writer_args), out, index
+        except RecordingError:
+            if not out.exists():
+                raise
+    raise RecordingError(f"no free segment name for {path}")
+
+
+# Tools -----------------------------------------------------------------------------------------
+
+
+def check(path: str | Path) -> list[str]:
+    """Validate a recording; returns the problems found (empty when it is sound).
+
+    Every segment (`segments(path)`) is checked; with several, each problem starts with its file's
+    name. Checked: magic at both ends; every channel's schema and every message's channel defined
+    before use; chunk decompression, uncompressed sizes and CRCs, chunk time ranges; message
+    indexes against their chunk; log times non-decreasing within chunks and indexes; DataEnd and
+    Footer present; summary CRC; summary schemas and channels equal to the data section's; chunk
+    indexes and statistics consistent with the data.
 
     Raises:
         RecordingError: the file cannot be opened.
 
     """
-    _require(path)
+    files = segments(path)
+    problems = []
+    for file in files:
+        found = _check_file(file)
+        problems += [f"{file.name}: {p}" for p in found] if len(files) > 1 else found
+    return problems
+
+
+def _check_file(path: Path) -> list[str]:
     w = _walk(path)
     if not w.problems or w.footer is not None:
         _check_summary(w, path)
@@ -715,8 +924,8 @@ def check(path: str | Path) -> list[str]:
 
 @dataclass(frozen=True)
 class RecoverResult:
-    """What `recover` kept: messages and channels copied, and where the source stopped being
-    readable.
+    """What `recover` kept: messages and channels copied, the bytes of the source that could be
+    read, the segments read, and the problems met (the first also as `problem`).
     """
 
     messages: int
@@ -724,60 +933,90 @@ class RecoverResult:
     readable_bytes: int
     source_bytes: int
     problem: str | None
+    problems: list[str] = field(default_factory=list)
+    segments: int = 1
 
 
 def recover(src: str | Path, dst: str | Path) -> RecoverResult:
-    """Copy every message of `src` up to its first broken record into a clean, indexed file `dst`.
+    """Copy every message of every readable chunk of the recording `src` (all its segments) into
+    one clean, indexed file `dst`.
 
-    Message bytes, times and sequence numbers are kept; schema and channel ids may be renumbered.
+    A chunk that cannot be read is skipped and named; the chunks after it are still copied. When
+    the chunk defining a channel is the broken one, the definitions come from the summary section;
+    after a record whose framing is broken, reading goes on at the next chunk the summary's chunk
+    indexes locate (a file cut short by a crash has no summary: it is read up to its last complete
+    chunk). Message bytes, times and sequence numbers are kept; schema and channel ids may be
+    renumbered, and channels of the same topic in several segments become one.
 
     Raises:
-        RecordingError: `src` cannot be opened or is not MCAP at all.
+        RecordingError: `src` cannot be opened or is not MCAP at all, or `dst` is one of its
+            segments or exists already.
 
     """
-    _require(src)
-    if Path(src).resolve() == Path(dst).resolve():
-        raise RecordingError(f"recover would overwrite its input {src}; choose another output path")
-    schema_ids: dict[int, int] = {}
-    channel_ids: dict[int, int] = {}
+    files = segments(src)
+    if any(f.resolve() == Path(dst).resolve() for f in files):
+        raise RecordingError(f"recover would overwrite its input {dst}; choose another output path")
+    schema_ids: dict[tuple[str, str, bytes], int] = {}
+    channel_ids: dict[tuple[Any, ...], int] = {}
+    problems: list[str] = []
+    readable = 0
     with ChunkedWriter(dst) as writer:
+        for file in files:
+            ids: dict[int, int] = {}
 
-        def copy(schema: Schema | None, channel: Channel, message: Message) -> None:
-            if channel.id not in channel_ids:
-                sid = 0
-                if schema is not None:
-                    if schema.id not in schema_ids:
-                        schema_ids[schema.id] = writer.add_schema(
-                            schema.name, schema.encoding, schema.data
+            def copy(
+                schema: Schema | None, channel: Channel, message: Message, ids: dict = ids
+            ) -> None:
+                if channel.id not in ids:
+                    sid = 0
+                    if schema is not None:
+                        skey = (schema.name, schema.encoding, schema.data)
+                        if skey not in schema_ids:
+                            schema_ids[skey] = writer.add_schema(*skey)
+                        sid = schema_ids[skey]
+                    ckey = (
+                        channel.topic,
+                        channel.message_encoding,
+                        sid,
+                        tuple(sorted(channel.metadata.items())),
+                    )
+                    if ckey not in channel_ids:
+                        channel_ids[ckey] = writer.add_channel(
+                            channel.topic, channel.message_encoding, sid, channel.metadata
                         )
-                    sid = schema_ids[schema.id]
-                channel_ids[channel.id] = writer.add_channel(
-                    channel.topic, channel.message_encoding, sid, channel.metadata
+                    ids[channel.id] = channel_ids[ckey]
+                writer.add_message(
+                    ids[channel.id],
+                    message.log_time,
+                    message.publish_time,
+                    message.sequence,
+                    message.data,
                 )
-            writer.add_message(
-                channel_ids[channel.id],
-                message.log_time,
-                message.publish_time,
-                message.sequence,
-                message.data,
-            )
 
-        w = _walk(src, on_message=copy, stop_at_first_problem=True)
+            w = _walk(file, on_message=copy, summary=_read_summary(file))
+            if file == files[0] and w.complete_up_to == 0 and w.problems:
+                Path(dst).unlink(missing_ok=True)
+                raise RecordingError(f"{src} is not an MCAP file: {w.problems[0]}")
+            if w.footer is None and not w.problems:
+                w.problems.append("not closed (no Footer)")
+            named = len(files) > 1
+            problems += [f"{file.name}: {p}" if named else p for p in w.problems]
+            readable += w.complete_up_to
         n = writer.statistics.message_count
-    if w.complete_up_to == 0 and w.problems:
-        raise RecordingError(f"{src} is not an MCAP file: {w.problems[0]}")
     return RecoverResult(
         messages=n,
         channels=len(channel_ids),
-        readable_bytes=w.complete_up_to,
-        source_bytes=os.path.getsize(src),
-        problem=w.problems[0] if w.problems else None,
+        readable_bytes=readable,
+        source_bytes=sum(os.path.getsize(f) for f in files),
+        problem=problems[0] if problems else None,
+        problems=problems,
+        segments=len(files),
     )
 
 
 @dataclass(frozen=True)
 class ChannelInfo:
-    """One channel of a recording."""
+    """One channel (topic) of a recording; `id` is its id in the first segment holding it."""
 
     id: int
     topic: str
@@ -788,7 +1027,9 @@ class ChannelInfo:
 
 @dataclass(frozen=True)
 class RecordingInfo:
-    """Summary of a recording: channels, message count, time span (log time, ns), size."""
+    """Summary of a recording (all its segments): channels, message count, time span (log time,
+    ns), size, and the problems met reading it (a segment not closed, a chunk that cannot be read).
+    """
 
     path: str
     size_bytes: int
@@ -798,6 +1039,8 @@ class RecordingInfo:
     start_ns: int | None
     end_ns: int | None
     closed: bool
+    segments: list[str] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
 
     @property
     def duration_s(self) -> float:
@@ -808,52 +1051,166 @@ class RecordingInfo:
 
 
 def info(path: str | Path) -> RecordingInfo:
-    """Summarise `path` from its summary section, or by a scan when it has none (a crashed
-    recording).
+    """Summarise the recording `path` (all its segments) by reading every record; files that were
+    not closed and chunks that cannot be read are counted up to what is readable, and named in
+    `problems`.
 
     Raises:
         RecordingError: the file cannot be opened or is not MCAP.
 
     """
-    _require(path)
-    w = _walk(path)
-    if w.complete_up_to == 0 and w.problems:
-        raise RecordingError(f"{path} is not a readable MCAP file: {w.problems[0]}")
-    channels = [
-        ChannelInfo(
-            id=c.id,
-            topic=c.topic,
-            schema_name=w.schemas[c.schema_id].name if c.schema_id in w.schemas else "",
-            message_encoding=c.message_encoding,
-            messages=w.message_counts.get(c.id, 0),
-        )
-        for c in sorted(w.channels.values(), key=lambda c: c.topic)
-    ]
+    files = segments(path)
+    by_topic: dict[tuple[str, str, str], ChannelInfo] = {}
+    problems: list[str] = []
+    messages = chunks = size = 0
+    start: int | None = None
+    end: int | None = None
+    for file in files:
+        w = _walk(file, summary=_read_summary(file))
+        if w.complete_up_to == 0 and w.problems:
+            raise RecordingError(f"{file} is not a readable MCAP file: {w.problems[0]}")
+        found = list(w.problems)
+        if w.footer is None and not any(p.startswith("truncated") for p in found):
+            found.append("not closed (no Footer)")
+        problems += [f"{file.name}: {p}" for p in found]
+        for c in w.channels.values():
+            schema = w.schemas[c.schema_id].name if c.schema_id in w.schemas else ""
+            key = (c.topic, schema, c.message_encoding)
+            known = by_topic.get(key)
+            count = w.message_counts.get(c.id, 0) + (known.messages if known else 0)
+            by_topic[key] = ChannelInfo(
+                id=known.id if known else c.id,
+                topic=c.topic,
+                schema_name=schema,
+                message_encoding=c.message_encoding,
+                messages=count,
+            )
+        messages += w.messages
+        chunks += len(w.chunks)
+        size += os.path.getsize(file)
+        if w.start_time is not None:
+            start = w.start_time if start is None else min(start, w.start_time)
+            end = w.end_time if end is None else max(end, w.end_time)  # type: ignore[type-var]
     return RecordingInfo(
         path=str(path),
-        size_bytes=os.path.getsize(path),
-        channels=channels,
-        messages=w.messages,
-        chunks=len(w.chunks),
-        start_ns=w.start_time,
-        end_ns=w.end_time,
-        closed=w.footer is not None,
+        size_bytes=size,
+        channels=sorted(by_topic.values(), key=lambda c: (c.topic, c.id)),
+        messages=messages,
+        chunks=chunks,
+        start_ns=start,
+        end_ns=end,
+        closed=all(is_closed(f) for f in files),
+        segments=[str(f) for f in files],
+        problems=problems,
     )
 
 
-def iter_messages(path: str | Path) -> Any:
-    """(topic, Message) pairs of `path` in log-time order, for tools and tests; cut-short files are
-    read up to their last complete chunk.
+def topics(path: str | Path) -> list[str]:
+    """The channel topics of the recording `path` (all its segments), sorted; from the summary of
+    a closed segment, by reading the records of one that was cut short.
 
     Raises:
-        RecordingError: the file cannot be opened.
+        RecordingError: a file cannot be opened or is not MCAP.
 
     """
-    _require(path)
-    out: list[tuple[str, Message]] = []
-    _walk(path, on_message=lambda s, c, m: out.append((c.topic, m)), stop_at_first_problem=True)
-    out.sort(key=lambda item: item[1].log_time)
-    return out
+    found: set[str] = set()
+    for file in segments(path):
+        summary = _read_summary(file)
+        if summary is None:
+            w = _walk(file)
+            if w.complete_up_to == 0 and w.problems:
+                raise RecordingError(f"{file} is not a readable MCAP file: {w.problems[0]}")
+            found |= {c.topic for c in w.channels.values()}
+        else:
+            found |= {c.topic for c in summary.channels.values()}
+    return sorted(found)
+
+
+def iter_messages(
+    path: str | Path, topics: list[str] | tuple[str, ...] | None = None
+) -> Iterator[tuple[str, Message]]:
+    """(topic, Message) pairs of the recording `path` (all its segments, one after the other) in
+    log-time order, read chunk by chunk (what replay reads). A segment cut short by a crash is read
+    up to its last complete chunk.
+
+    Args:
+        path: the recording (its first segment).
+        topics: only messages on these topics (None: all).
+
+    Raises:
+        RecordingError: a file cannot be opened, or a record or chunk of it cannot be read (the
+            error names the file, the chunk's offset and what is wrong; `atr mcap recover` copies
+            the chunks that can).
+
+    """
+    wanted = None if topics is None else set(topics)
+    for file in segments(path):
+        yield from _stream(file, wanted)
+
+
+def _stream(path: Path, wanted: set[str] | None) -> Iterator[tuple[str, Message]]:
+    """Messages of one file in log-time order: a chunk's messages are sorted, and those of the
+    chunks read so far wait in a heap until the next chunk starts later.
+    """
+    size = os.path.getsize(path)
+    heap: list[tuple[int, int, str, Message]] = []
+    channels: dict[int, Channel] = {}
+    n = 0  # arrival number: equal log times keep file order
+
+    def take(message: Message) -> None:
+        nonlocal n
+        channel = channels.get(message.channel_id)
+        if channel is None:
+            raise RecordingError(
+                f"{path}: message on channel id {message.channel_id}, which is not defined"
+            )
+        if wanted is None or channel.topic in wanted:
+            heapq.heappush(heap, (message.log_time, n, channel.topic, message))
+            n += 1
+
+    with open(path, "rb") as f:
+        strict = _StrictStream(f)
+        records = StreamReader(strict, emit_chunks=True, record_size_limit=size).records
+        start = 8
+        n_chunk = 0
+        while True:
+            try:
+                record = next(records)
+            except StopIteration:
+                break
+            except _TruncatedError:
+                break  # a segment cut short by a crash: read up to its last complete chunk
+            except (McapError, struct.error, UnicodeDecodeError, ValueError) as exc:
+                raise RecordingError(
+                    f"{path}: record at offset {start} cannot be read: {exc}"
+                ) from exc
+            if isinstance(record, Channel):
+                channels[record.id] = record
+            elif isinstance(record, Message):
+                take(record)
+            elif isinstance(record, Chunk):
+                n_chunk += 1
+                while heap and heap[0][0] <= record.message_start_time:
+                    _, _, topic, message = heapq.heappop(heap)
+                    yield topic, message
+                problems: list[str] = []
+                inner = _chunk_records(record, f"chunk #{n_chunk} at offset {start}", problems)
+                if inner is None:
+                    raise RecordingError(
+                        f"{path}: {problems[0]}; `atr mcap recover` copies the chunks that can "
+                        "be read"
+                    )
+                for _, item in inner:
+                    if isinstance(item, Channel):
+                        channels[item.id] = item
+                    elif isinstance(item, Message):
+                        take(item)
+            elif isinstance(record, DataEnd):
+                break
+            start = strict.offset
+    while heap:
+        _, _, topic, message = heapq.heappop(heap)
+        yield topic, message
 
 
 def _require(path: str | Path) -> None:

@@ -16,7 +16,15 @@
   rest;
 - a chunk is closed when it exceeds `chunk_size_bytes` or `flush_interval_s` after its first
   message, so a `kill -9` loses at most about that long; SIGINT/SIGTERM close the file with its
-  summary and indexes.
+  summary and indexes;
+- an existing file is never truncated or overwritten: a recorder started again with the same `out`
+  (e.g. restarted after a crash) writes the next segment (`flight.1.mcap`, ...), which names the
+  segment it continues and whether that one was cut (`bus.mcap_tools.create_segment`); the
+  restart is also reported on the recorder's errors key;
+- keys are bounded: MCAP channel ids are 16-bit, so at most `max_keys` channels, of which at most
+  `max_foreign_keys` for keys outside the contract; messages on further keys are refused, counted
+  (`refused`) and reported at most once per second. A message that cannot be written is reported
+  and counted (`write_errors`); only a failure of the file itself stops the recording.
 """
 
 from __future__ import annotations
@@ -33,7 +41,7 @@ import zenoh
 
 from atr.errors import AtrError, BusError, ConfigError, RecordingError
 from bus import codec, keys, schemas
-from bus.mcap_tools import ChunkedWriter
+from bus.mcap_tools import MAX_ID, create_segment, is_closed, segment_path
 from bus.node import Node
 
 log = logging.getLogger("atr.recorder")
@@ -52,6 +60,9 @@ class RecorderConfig:
             the loss on a crash), seconds.
         zstd_level: zstd level of chunks (1: fastest positive level; see docs/performance/bus.md).
         zstd_threads: zstd worker threads (0 = compress in the writer thread).
+        max_keys: most distinct keys (MCAP channels) recorded; MCAP's ids allow 65,535.
+        max_foreign_keys: most distinct keys outside the contract's key expressions recorded (so
+            that a peer publishing many such keys cannot take the room of the contract's).
 
     """
 
@@ -60,6 +71,8 @@ class RecorderConfig:
     flush_interval_s: float = 1.0
     zstd_level: int = 1
     zstd_threads: int = 0
+    max_keys: int = MAX_ID
+    max_foreign_keys: int = 1024
 
     def __post_init__(self) -> None:
         if not self.key_exprs:
@@ -70,6 +83,12 @@ class RecorderConfig:
             raise ConfigError(f"flush interval {self.flush_interval_s} s must be > 0")
         if not -7 <= self.zstd_level <= 22:
             raise ConfigError(f"zstd level {self.zstd_level} must be in [-7, 22]")
+        if not 1 <= self.max_keys <= MAX_ID:
+            raise ConfigError(f"max keys {self.max_keys} must be in [1, {MAX_ID}]")
+        if not 0 <= self.max_foreign_keys <= self.max_keys:
+            raise ConfigError(
+                f"max foreign keys {self.max_foreign_keys} must be in [0, {self.max_keys}]"
+            )
 
 
 @dataclass
@@ -83,6 +102,9 @@ class RecorderStats:
     unstamped: int = 0
     gaps: int = 0
     queue_max: int = 0
+    refused: int = 0
+    write_errors: int = 0
+    segment: int = 0
     by_topic: dict[str, int] = field(default_factory=dict)
 
 
@@ -94,10 +116,12 @@ class Recorder:
 
     Args:
         session: an open Zenoh session (not closed by the recorder).
-        out: path of the MCAP file to write (parent folders are created).
+        out: path of the recording (parent folders are created); when it exists, the next segment
+            is written (`flight.1.mcap`, ...; `self.path` is the file written).
         config: chunking and subscription settings.
         on_problem: called from the writer thread with (key, exception) for problems worth reporting
-            on the bus (sequence gaps; a write failure, after which recording stops).
+            on the bus (sequence gaps, refused keys, a message that could not be written, a failure
+            of the file, after which recording stops and `failure` is set).
 
     Raises:
         RecordingError: the file cannot be created.
@@ -112,17 +136,28 @@ class Recorder:
         on_problem: Any = None,
     ) -> None:
         self.config = config or RecorderConfig()
-        self.path = Path(out)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.recording = Path(out)
+        try:
+            self.recording.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RecordingError(f"cannot create the folder of {out}: {exc}") from exc
         self.stats = RecorderStats()
         self.failure: BaseException | None = None
-        self._writer = ChunkedWriter(
-            self.path,
+        self._writer, self.path, self.segment = create_segment(
+            self.recording,
             chunk_size_bytes=self.config.chunk_size_bytes,
             zstd_level=self.config.zstd_level,
             zstd_threads=self.config.zstd_threads,
             background=True,
         )
+        self.stats.segment = self.segment
+        self.continues: Path | None = None
+        self.previous_closed = True
+        if self.segment > 0:
+            self.continues = segment_path(self.recording, self.segment - 1)
+            self.previous_closed = is_closed(self.continues)
+        self._foreign_keys = 0
+        self._last_report_ns: dict[str, int] = {}
         self._on_problem = on_problem
         self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
         self._clock = threading.Lock()
@@ -167,8 +202,19 @@ class Recorder:
             if item is not None and self.failure is None:
                 try:
                     self._write(*item)
-                except Exception as exc:  # noqa: BLE001 - the writer thread must not die silently:
-                    self._fail(item[1], exc)  # report, stop recording, close() raises it
+                except Exception as exc:  # noqa: BLE001 - one message must not stop the others:
+                    if self._writer.failure is not None or isinstance(exc, OSError):
+                        self._fail(item[1], exc)  # the file itself failed: stop, close() raises
+                    else:
+                        self.stats.write_errors += 1
+                        self._limited(
+                            "write_errors",
+                            item[1],
+                            RecordingError(
+                                f"message on {item[1]} not recorded ({type(exc).__name__}: "
+                                f"{exc}); {self.stats.write_errors} such so far"
+                            ),
+                        )
                 if self._writer.pending_messages == 1:
                     first_pending_ns = now
                 depth = self._queue.qsize()
@@ -192,10 +238,20 @@ class Recorder:
             except Exception:  # reporting must never stop the recording
                 log.exception("problem report failed")
 
+    def _limited(self, kind: str, key: str, exc: AtrError) -> None:
+        """Report at most one problem of this kind per second (a flood must not flood the bus)."""
+        now = time.monotonic_ns()
+        if now - self._last_report_ns.get(kind, -(10**10)) >= 1_000_000_000:
+            self._last_report_ns[kind] = now
+            log.warning("%s", exc)
+            self._problem(key, exc)
+
     def _write(self, log_time: int, key: str, payload: bytes, attachment: bytes | None) -> None:
         channel_id = self._channel_ids.get(key)
         if channel_id is None:
             channel_id = self._add_channel(key)
+            if channel_id is None:
+                return
         seq, stamp_ns = self._seq_stamp(key, payload, attachment)
         self._writer.add_message(channel_id, log_time, stamp_ns, seq, payload)
         s = self.stats
@@ -203,11 +259,29 @@ class Recorder:
         s.bytes += len(payload)
         s.by_topic[key] = s.by_topic.get(key, 0) + 1
 
-    def _add_channel(self, key: str) -> int:
+    def _add_channel(self, key: str) -> int | None:
         try:
             type_name = keys.message_type(key)
         except BusError:
             type_name = None
+        cap = self.config.max_keys
+        if type_name is None and self._foreign_keys >= self.config.max_foreign_keys:
+            cap, what = self.config.max_foreign_keys, "keys outside the contract"
+        elif len(self._channel_ids) >= cap:
+            what = "keys"
+        else:
+            what = ""
+        if what:
+            self.stats.refused += 1
+            self._limited(
+                "refused",
+                key,
+                BusError(
+                    f"key {key!r} not recorded: the recording already holds {cap} {what} "
+                    f"(the most it takes); {self.stats.refused} message(s) refused so far"
+                ),
+            )
+            return None
         schema_id = 0
         if type_name is not None:
             schema_id = self._schema_ids.get(type_name, 0)
@@ -216,9 +290,10 @@ class Recorder:
                     type_name, "jsonschema", schemas.schema_bytes(type_name)
                 )
                 self._schema_ids[type_name] = schema_id
-        else:
-            self.stats.without_schema += 1
         channel_id = self._writer.add_channel(key, "msgpack", schema_id)
+        if type_name is None:
+            self.stats.without_schema += 1
+            self._foreign_keys += 1
         self._channel_ids[key] = channel_id
         self.stats.channels += 1
         return channel_id
@@ -287,7 +362,8 @@ def _int_field(message: dict[Any, Any], name: str) -> int:
 
 class RecorderNode(Node):
     """A `Node` whose Status also carries the recorder's figures: counters messages, bytes,
-    channels, gaps, queue_max, unstamped; handled_by_key = messages recorded per topic.
+    channels, gaps, queue_max, unstamped, refused (messages on keys beyond the cap), write_errors,
+    segment (index of the file written); handled_by_key = messages recorded per topic.
     """
 
     recorder: Recorder | None = None
@@ -304,6 +380,9 @@ class RecorderNode(Node):
             "gaps": s.gaps,
             "queue_max": s.queue_max,
             "unstamped": s.unstamped,
+            "refused": s.refused,
+            "write_errors": s.write_errors,
+            "segment": s.segment,
         }
         return {"counters": counters, "handled_by_key": self._by_topic()}
 
@@ -335,16 +414,31 @@ def run_recorder(
 
     """
     with RecorderNode(service, uav, zenoh_config=zenoh_config) as node:
+        recorder: Recorder | None = None
 
         def report(key: str, exc: AtrError) -> None:
             node.report_error(key, exc)
-            if isinstance(exc, RecordingError):
-                node.stop()
+            if recorder is not None and recorder.failure is not None:
+                node.stop()  # the file itself failed
 
         recorder = Recorder(node.session, out, config, on_problem=report)
         node.recorder = recorder
         log.info("recording %s to %s", ", ".join(recorder.config.key_exprs), recorder.path)
         node.ready()
+        if recorder.continues is not None:
+            cut = (
+                "closed"
+                if recorder.previous_closed
+                else "cut (not closed: its last second or so is lost)"
+            )
+            node.report_error(
+                str(recorder.recording),
+                RecordingError(
+                    f"{recorder.recording} exists: recording continues in segment "
+                    f"{recorder.segment} ({recorder.path.name}); the previous segment "
+                    f"{recorder.continues.name} was {cut}"
+                ),
+            )
         if ready is not None:
             ready.set()
         try:

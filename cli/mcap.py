@@ -1,10 +1,12 @@
 """Inspect, check and repair MCAP recordings.
 
-`info` lists channels (topic, schema, message count), the time span, message count and size. `check`
-validates the file record by record (magic, schema and channel definitions before use, chunk CRCs
-and sizes, indexes, summary and statistics against the data, log-time order) and names every problem
-(exit 1), or prints OK. `recover` copies everything up to the first broken record (e.g. after a
-crash) into a clean file.
+FILE is a recording's first segment: `flight.mcap` also reads `flight.1.mcap`, `flight.2.mcap`, ...
+(what a restarted recorder writes) as one recording. `info` lists channels (topic, schema, message
+count), the time span, message count and size; it warns on stderr and exits 1 when a segment was not
+closed or a chunk cannot be read. `check` validates the file record by record (magic, schema and
+channel definitions before use, chunk CRCs and sizes, indexes, summary and statistics against the
+data, log-time order) and names every problem (exit 1), or prints OK. `recover` copies every
+readable chunk of every segment (e.g. after a crash) into one clean file.
 
 Examples:
     atr mcap info runs/flight.mcap
@@ -16,17 +18,20 @@ Examples:
 from __future__ import annotations
 
 import argparse
+import sys
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Sub-commands of `atr mcap`."""
     sub = parser.add_subparsers(dest="mcap_command", metavar="ACTION", required=True)
-    info = sub.add_parser("info", help="channels, counts, time span, size")
+    info = sub.add_parser(
+        "info", help="channels, counts, time span, size; exit 1 when the file has problems"
+    )
     info.add_argument("file", metavar="FILE")
     check = sub.add_parser("check", help="validate a recording; exit 1 naming each problem")
     check.add_argument("file", metavar="FILE")
     recover = sub.add_parser(
-        "recover", help="copy a cut-short recording up to its last good record"
+        "recover", help="copy every readable chunk of a damaged or cut-short recording"
     )
     recover.add_argument("src", metavar="IN")
     recover.add_argument("dst", metavar="OUT")
@@ -57,6 +62,8 @@ def run(args: argparse.Namespace) -> int:
     if args.mcap_command == "info":
         info = mcap_tools.info(args.file)
         print(f"file:      {info.path}")
+        if len(info.segments) > 1:
+            print(f"segments:  {len(info.segments)} ({', '.join(info.segments)})")
         print(f"size:      {info.size_bytes / 1e6:.3f} MB{'' if info.closed else ' (not closed)'}")
         print(f"messages:  {info.messages} in {info.chunks} chunk(s)")
         print(
@@ -66,6 +73,15 @@ def run(args: argparse.Namespace) -> int:
         width = max((len(c.topic) for c in info.channels), default=5)
         for c in info.channels:
             print(f"  {c.topic:<{width}}  {c.schema_name or '(no schema)':<12} {c.messages:>8}")
+        for problem in info.problems:
+            print(f"warning: {problem}", file=sys.stderr)
+        if info.problems:
+            print(
+                f"warning: {len(info.problems)} problem(s): the counts above are what can be read; "
+                "`atr mcap check` names them, `atr mcap recover` copies what is intact",
+                file=sys.stderr,
+            )
+            return 1
         return 0
     if args.mcap_command == "check":
         problems = mcap_tools.check(args.file)
@@ -84,10 +100,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {sum(counts.values())} messages to {args.dst}")
         return 0
     result = mcap_tools.recover(args.src, args.dst)
+    segments = f" in {result.segments} segments" if result.segments > 1 else ""
     print(
         f"recovered {result.messages} messages on {result.channels} channels from "
-        f"{result.readable_bytes}/{result.source_bytes} bytes into {args.dst}"
+        f"{result.readable_bytes}/{result.source_bytes} bytes{segments} into {args.dst}"
     )
-    if result.problem:
-        print(f"stopped at: {result.problem}")
+    for problem in result.problems:
+        print(f"skipped: {problem}")
     return 0

@@ -2,7 +2,9 @@
 
 The file follows ARCHITECTURE.md §6 (msgpack messages, JSON Schema channels, zstd chunks, log time =
 receive time); see docs/recording.md. A chunk is written at least every `--flush-interval` seconds,
-so a crash loses at most that much (`atr mcap recover` repairs a file cut short).
+so a crash loses at most that much (`atr mcap recover` repairs a file cut short). An existing file is
+never overwritten: recording again to the same `--out` writes the next segment (`flight.1.mcap`, ...), and
+the `atr mcap` tools read the segments as one recording.
 
 Examples:
     atr record --out runs/flight.mcap            # default Zenoh session (ATR_ZENOH_* env)
@@ -18,7 +20,12 @@ import argparse
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr record`."""
-    parser.add_argument("--out", required=True, help="MCAP file to write (folders are created)")
+    parser.add_argument(
+        "--out",
+        required=True,
+        help="MCAP file to write (folders are created); never overwritten: when it exists, the "
+        "next segment OUT.1.mcap, OUT.2.mcap, ... is written",
+    )
     parser.add_argument(
         "--zenoh", metavar="CONFIG", help="Zenoh JSON5 config (default: ATR_ZENOH_* env)"
     )

@@ -22,7 +22,8 @@ def main(argv: list[str] | None = None) -> int:
         "--out",
         default=os.environ.get("ATR_RECORDER_OUT")
         or time.strftime("runs/recording-%Y%m%d-%H%M%S.mcap"),
-        help="MCAP file to write (default $ATR_RECORDER_OUT or runs/recording-<time>.mcap)",
+        help="MCAP file to write (default $ATR_RECORDER_OUT or runs/recording-<time>.mcap); "
+        "when it exists (a restart), the next segment OUT.1.mcap, ... is written",
     )
     parser.add_argument(
         "--uav", default=os.environ.get("ATR_UAV", "uav1"), help="vehicle id of own keys"

@@ -28,7 +28,7 @@ def test_export_lists_foxglove_schemas_and_every_frame(tmp_path):
                     "seq": k,
                     "frame_seq": k,
                     "encoding": "rgb8",
-                    "data": np.full((8, 10, 3), k, np.uint8),
+                    "data": np.full((16, 20, 3), k, np.uint8),
                     "K": np.eye(3),
                 },
             ),

@@ -151,3 +151,130 @@ def test_cli_check_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert atr_main(["mcap", "info", str(good)]) == 0
     out = capsys.readouterr().out
     assert "atr/uav1/camera/image" in out and "Image" in out and "messages:  40" in out
+
+
+def _corrupt_chunk(path: Path, which: int) -> int:
+    """Flips a byte inside the compressed records of chunk `which`; returns the chunk's offset."""
+    offset, length = _chunk_offsets(path)[which]
+    data = bytearray(path.read_bytes())
+    data[offset + length - 20] ^= 0x5A
+    path.write_bytes(bytes(data))
+    return offset
+
+
+def test_the_writer_never_truncates_an_existing_file(tmp_path: Path) -> None:
+    path = tmp_path / "kept.mcap"
+    _write(path)
+    before = path.read_bytes()
+    with pytest.raises(RecordingError, match="already exists"):
+        mcap_tools.ChunkedWriter(path)
+    assert path.read_bytes() == before
+
+
+def test_segments_continue_a_recording_and_read_as_one(tmp_path: Path) -> None:
+    first = tmp_path / "flight.mcap"
+    written = _write(first, n=12)
+    last_offset, _ = _chunk_offsets(first)[-1]
+    with open(first, "rb") as f:
+        last_start = make_reader(f).get_summary().chunk_indexes[-1].message_start_time
+    first.write_bytes(first.read_bytes()[: last_offset + 5])  # a crash inside its last chunk
+    kept = [w for w in written if w[1] < last_start]
+    writer, path, index = mcap_tools.create_segment(first)
+    assert (path, index) == (tmp_path / "flight.1.mcap", 1)
+    cid = writer.add_channel("atr/uav1/imu", "msgpack", 0)
+    later = [("atr/uav1/imu", 9_000 + i, i, i, bytes([i])) for i in range(5)]
+    for topic, log_time, stamp, seq, data in later:
+        writer.add_message(cid, log_time, stamp, seq, data)
+    writer.close()
+    second = mcap_tools.create_segment(first)
+    second[0].close()
+    assert second[1:] == (tmp_path / "flight.2.mcap", 2)
+
+    assert mcap_tools.segments(first) == [first, path, second[1]]
+    with open(path, "rb") as f:
+        meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+    assert meta["atr.segment"] == {
+        "recording": "flight.mcap",
+        "segment": "1",
+        "continues": "flight.mcap",
+        "previous_closed": "false",
+    }
+    got = [
+        (t, m.log_time, m.publish_time, m.sequence, m.data)
+        for t, m in mcap_tools.iter_messages(first)
+    ]
+    assert kept and got == kept + later
+    info = mcap_tools.info(first)
+    assert info.messages == len(got) and len(info.segments) == 3 and not info.closed
+    assert any("flight.mcap" in p and "truncated" in p for p in info.problems)
+    out = tmp_path / "joined.mcap"
+    result = mcap_tools.recover(first, out)
+    assert result.segments == 3 and result.messages == len(got)
+    assert mcap_tools.check(out) == []
+    assert [(t, m.log_time, m.data) for t, m in mcap_tools.iter_messages(out)] == [
+        (t, lt, d) for t, lt, _, _, d in got
+    ]
+    problems = mcap_tools.check(first)
+    assert any(p.startswith("flight.mcap: truncated") for p in problems), problems
+    assert not any(p.startswith("flight.1.mcap") for p in problems), problems
+
+
+def test_recover_keeps_every_intact_chunk_after_a_corrupted_one(tmp_path: Path) -> None:
+    path = tmp_path / "bad-first.mcap"
+    written = _write(path, n=12, chunk_size=300)
+    chunks = _chunk_offsets(path)
+    assert len(chunks) >= 4
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    lost_end = summary.chunk_indexes[0].message_end_time
+    _corrupt_chunk(path, 0)  # the chunk that defines the channels
+
+    out = tmp_path / "out.mcap"
+    result = mcap_tools.recover(path, out)
+    assert mcap_tools.check(out) == []
+    with open(out, "rb") as f:
+        got = [
+            (c.topic, m.log_time, m.publish_time, m.sequence, m.data)
+            for _, c, m in make_reader(f).iter_messages()
+        ]
+    assert got == [w for w in written if w[1] > lost_end]
+    assert result.messages == len(got) > 0
+    assert any(f"offset {chunks[0][0]}" in p for p in result.problems), result.problems
+
+
+def test_recover_goes_on_after_a_chunk_whose_framing_is_broken(tmp_path: Path) -> None:
+    path = tmp_path / "bad-length.mcap"
+    written = _write(path, n=12, chunk_size=300)
+    (offset, _), (next_offset, _) = _chunk_offsets(path)[1:3]
+    data = bytearray(path.read_bytes())
+    data[offset + 1 : offset + 9] = (2**40).to_bytes(8, "little")  # record length: nonsense
+    path.write_bytes(bytes(data))
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    after = summary.chunk_indexes[2].message_start_time
+    out = tmp_path / "out.mcap"
+    mcap_tools.recover(path, out)
+    with open(out, "rb") as f:
+        times = [m.log_time for _, _, m in make_reader(f).iter_messages()]
+    assert [w[1] for w in written if w[1] >= after] == [t for t in times if t >= after]
+    assert times[0] == written[0][1]
+
+
+def test_info_warns_and_exits_1_on_a_corrupted_chunk(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "bad.mcap"
+    _write(path, n=12, chunk_size=300)
+    offset = _corrupt_chunk(path, 0)
+    assert atr_main(["mcap", "info", str(path)]) == 1
+    captured = capsys.readouterr()
+    assert f"offset {offset}" in captured.err and "warning" in captured.err
+    assert "messages:  0" not in captured.out  # the intact chunks are counted
+
+
+def test_reading_a_corrupted_chunk_raises_a_recording_error_naming_it(tmp_path: Path) -> None:
+    path = tmp_path / "bad.mcap"
+    _write(path, n=12, chunk_size=300)
+    offset = _corrupt_chunk(path, 2)
+    with pytest.raises(RecordingError, match=rf"bad\.mcap: chunk #3 at offset {offset}: "):
+        list(mcap_tools.iter_messages(path))

@@ -78,7 +78,18 @@ def test_a_heartbeat_sent_before_the_recorder_is_attached_carries_its_counters(h
         assert node.recorder is None
         extra = node.extra_status()
     assert extra["counters"] == dict.fromkeys(
-        ("messages", "bytes", "channels", "gaps", "queue_max", "unstamped"), 0
+        (
+            "messages",
+            "bytes",
+            "channels",
+            "gaps",
+            "queue_max",
+            "unstamped",
+            "refused",
+            "write_errors",
+            "segment",
+        ),
+        0,
     )
     assert extra["handled_by_key"] == {}
 

@@ -1,0 +1,88 @@
+"""The recorder under a flood of distinct keys (MCAP channel ids are 16-bit) and a message that
+cannot be written: it refuses what it must, counts and reports it, and records everything else."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from atr.errors import AtrError
+from bus import mcap_tools
+from bus.recorder import Recorder
+from bus.session import open_session
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from conftest import peer_config  # noqa: E402
+
+pytestmark = pytest.mark.e2e
+
+
+def _wait(condition, timeout_s: float = 60.0) -> None:  # noqa: ANN001
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, "the recorder did not take every message in time"
+        time.sleep(0.05)
+
+
+def test_66000_distinct_keys_do_not_stop_the_recording(hub: str, tmp_path: Path) -> None:
+    out = tmp_path / "flood.mcap"
+    problems: list[tuple[str, AtrError]] = []
+    recorder_session = open_session(peer_config(hub))
+    peer = open_session(peer_config(hub))
+    try:
+        recorder = Recorder(
+            recorder_session, out, on_problem=lambda key, exc: problems.append((key, exc))
+        )
+        time.sleep(0.5)  # the subscription reaches the peer
+        flood = 66_000
+        for i in range(flood):
+            peer.put(f"atr/flood/{i}", b"x")
+        for i in range(5):
+            peer.put("atr/uav1/imu", bytes([i]))
+        _wait(lambda: recorder.stats.messages + recorder.stats.refused == flood + 5)
+        stats = recorder.close()  # the old recorder failed here: channel id beyond 65535
+    finally:
+        peer.close()
+        recorder_session.close()
+
+    cap = recorder.config.max_foreign_keys
+    assert (stats.refused, stats.write_errors) == (flood - cap, 0)
+    assert mcap_tools.check(out) == []
+    got = list(mcap_tools.iter_messages(out))
+    assert [m.data for t, m in got if t == "atr/uav1/imu"] == [bytes([i]) for i in range(5)]
+    assert sum(t.startswith("atr/flood/") for t, _ in got) == cap
+    # reported, but not once per refused message
+    refusals = [exc for _, exc in problems if "not recorded" in str(exc)]
+    assert 1 <= len(refusals) < 100 and f"holds {cap} keys outside the contract" in str(refusals[0])
+
+
+def test_a_message_that_cannot_be_written_does_not_stop_the_others(
+    hub: str, tmp_path: Path
+) -> None:
+    out = tmp_path / "one-bad.mcap"
+    problems: list[tuple[str, AtrError]] = []
+    recorder_session = open_session(peer_config(hub))
+    peer = open_session(peer_config(hub))
+    try:
+        recorder = Recorder(
+            recorder_session, out, on_problem=lambda key, exc: problems.append((key, exc))
+        )
+        time.sleep(0.5)
+        peer.put("atr/uav1/imu", b"before")
+        _wait(lambda: recorder.stats.messages == 1)
+        # what the writer thread would get from a broken callback: no payload at all
+        recorder._queue.put((time.time_ns(), "atr/uav1/imu", None, None))
+        peer.put("atr/uav1/imu", b"after")
+        _wait(lambda: recorder.stats.messages == 2)
+        stats = recorder.close()
+    finally:
+        peer.close()
+        recorder_session.close()
+
+    assert stats.write_errors == 1 and recorder.failure is None
+    assert any("not recorded" in str(exc) for _, exc in problems), problems
+    assert mcap_tools.check(out) == []
+    assert [m.data for _, m in mcap_tools.iter_messages(out)] == [b"before", b"after"]
