@@ -19,6 +19,7 @@ none).
 
 from __future__ import annotations
 
+import functools
 import heapq
 import io
 import os
@@ -37,6 +38,8 @@ from mcap.exceptions import InvalidMagic, McapError
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
 from mcap.records import (
+    Attachment,
+    AttachmentIndex,
     Channel,
     Chunk,
     ChunkIndex,
@@ -134,16 +137,14 @@ class ChunkedWriter:
         self._chunk_end = 0
         self._chunk_messages = 0
         self._pos = 0
+        self._data_crc = 0  # CRC-32 of every byte before DataEnd (MCAP's data section CRC)
         self._closed = False
         self._failure: BaseException | None = None
         self._write_records(lambda b: b.write(MAGIC), Header(PROFILE, LIBRARY).write)
         self._metadata_indexes: list[MetadataIndex] = []
+        self._attachment_indexes: list[AttachmentIndex] = []
         for name, values in (metadata or {}).items():
-            record = _record_bytes(Metadata(name=name, metadata=dict(values)))
-            self._metadata_indexes.append(MetadataIndex(self._pos, len(record), name))
-            self._f.write(record)
-            self._pos += len(record)
-            self.statistics.metadata_count += 1
+            self._write_metadata(name, values)
         self._jobs: queue.Queue[Any] | None = queue.Queue(maxsize=2) if background else None
         self._thread = None
         if self._jobs is not None:
@@ -277,8 +278,25 @@ class ChunkedWriter:
         self._index = {}
         self._chunk_messages = 0
         self.statistics.chunk_count += 1
+        self._run(functools.partial(self._write_chunk, *job))
+
+    def add_metadata(self, name: str, values: dict[str, str]) -> None:
+        """Write a Metadata record (a name and a string map) after the chunk in progress."""
+        self.flush()
+        self._run(functools.partial(self._write_metadata, name, dict(values)))
+
+    def add_attachment(self, name: str, media_type: str, data: bytes, log_time: int) -> None:
+        """Write an Attachment record (e.g. the effective configuration) after the chunk in
+        progress; `log_time` in ns.
+        """
+        self.flush()
+        self._run(functools.partial(self._write_attachment, name, media_type, data, log_time))
+
+    def _run(self, job: Any) -> None:
+        # Records reach the file in the order they were added: in background mode every write is
+        # a job on the one writer thread.
         if self._jobs is None:
-            self._write_chunk(*job)
+            job()
         else:
             self._jobs.put(job)
 
@@ -290,7 +308,7 @@ class ChunkedWriter:
                 return
             if self._failure is None:
                 try:
-                    self._write_chunk(*job)
+                    job()
                 except (OSError, zstandard.ZstdError) as exc:
                     self._failure = exc
 
@@ -316,17 +334,14 @@ class ChunkedWriter:
             b"zstd",
             len(compressed),
         )
-        self._f.write(head)
-        self._f.write(compressed)
-        self._pos += len(head) + len(compressed)
+        self._emit(head, compressed)
         builder = RecordBuilder()
         offsets = {}
         for channel_id, records in index.items():
             offsets[channel_id] = self._pos + builder.count
             MessageIndex(channel_id=channel_id, records=records).write(builder)
         index_bytes = builder.end()
-        self._f.write(index_bytes)
-        self._pos += len(index_bytes)
+        self._emit(index_bytes)
         self._chunk_indexes.append(
             ChunkIndex(
                 message_start_time=start,
@@ -342,8 +357,10 @@ class ChunkedWriter:
         )
         self._f.flush()
 
-    def close(self) -> None:
-        """Write the last chunk, DataEnd, the summary section, the footer and the closing magic."""
+    def close(self, metadata: dict[str, dict[str, str]] | None = None) -> None:
+        """Write the last chunk, then `metadata` (name -> string map; e.g. a clean-close marker),
+        DataEnd with the data section's CRC, the summary section, the footer and the closing magic.
+        """
         if self._closed:
             return
         self._closed = True
@@ -355,7 +372,9 @@ class ChunkedWriter:
         self._raise_failure()
         # Definitions not yet followed by a message stay in the summary only.
         self._buf = bytearray()
-        self._write_records(DataEnd(0).write)
+        for name, values in (metadata or {}).items():
+            self._write_metadata(name, values)
+        self._write_records(DataEnd(self._data_crc).write)
         summary_start = self._pos
         builder = RecordBuilder()
         groups: list[SummaryOffset] = []
@@ -371,6 +390,7 @@ class ChunkedWriter:
         group(Opcode.CHANNEL, list(self._channels.values()))
         group(Opcode.STATISTICS, [self.statistics])
         group(Opcode.CHUNK_INDEX, self._chunk_indexes)
+        group(Opcode.ATTACHMENT_INDEX, self._attachment_indexes)
         group(Opcode.METADATA_INDEX, self._metadata_indexes)
         offsets_start = summary_start + builder.count
         for offset in groups:
@@ -397,9 +417,27 @@ class ChunkedWriter:
         builder = RecordBuilder()
         for write in writers:
             write(builder)
-        data = builder.end()
-        self._f.write(data)
-        self._pos += len(data)
+        self._emit(builder.end())
+
+    def _emit(self, *parts: bytes | bytearray) -> None:
+        for part in parts:
+            self._f.write(part)
+            self._pos += len(part)
+            self._data_crc = zlib.crc32(part, self._data_crc)
+
+    def _write_attachment(self, name: str, media_type: str, data: bytes, log_time: int) -> None:
+        record = _record_bytes(Attachment(log_time, log_time, name, media_type, data))
+        self._attachment_indexes.append(
+            AttachmentIndex(self._pos, len(record), log_time, log_time, len(data), name, media_type)
+        )
+        self._emit(record)
+        self.statistics.attachment_count += 1
+
+    def _write_metadata(self, name: str, values: dict[str, str]) -> None:
+        record = _record_bytes(Metadata(name=name, metadata=dict(values)))
+        self._metadata_indexes.append(MetadataIndex(self._pos, len(record), name))
+        self._emit(record)
+        self.statistics.metadata_count += 1
 
 
 def _record_bytes(record: Any) -> bytes:
@@ -640,6 +678,9 @@ def _walk(
             elif isinstance(record, DataEnd):
                 w.data_end = True
                 in_summary = True
+                if record.data_section_crc:
+                    _check_data_crc(w, f, start, record.data_section_crc)
+                    f.seek(end)
             elif isinstance(record, ChunkIndex):
                 w.chunk_indexes.append(record)
             elif isinstance(record, Statistics):
@@ -721,6 +762,23 @@ def _check_message_index(
     times = [t for t, _ in index.records]
     if times != sorted(times):
         w.problems.append(f"{at}: log times of channel {index.channel_id} are not in order")
+
+
+def _check_data_crc(w: _Walk, f: IO[bytes], data_end: int, recorded: int) -> None:
+    """The data section's CRC (every byte before DataEnd) against the one DataEnd records."""
+    f.seek(0)
+    crc, left = 0, data_end
+    while left > 0:
+        block = f.read(min(left, 1 << 24))
+        if not block:
+            break
+        crc = zlib.crc32(block, crc)
+        left -= len(block)
+    if crc != recorded:
+        w.problems.append(
+            f"data section CRC mismatch (computed 0x{crc:08x}, recorded 0x{recorded:08x}): "
+            "the data section was changed after it was written"
+        )
 
 
 def _check_summary(w: _Walk, path: str | Path) -> None:

@@ -43,6 +43,13 @@ from atr.errors import AtrError, BusError, ConfigError, RecordingError
 from bus import codec, keys, schemas
 from bus.mcap_tools import MAX_ID, create_segment, is_closed, segment_path
 from bus.node import Node
+from bus.provenance import (
+    CONFIG_ATTACHMENT,
+    END_METADATA_NAME,
+    METADATA_NAME,
+    RunContext,
+    gather,
+)
 
 log = logging.getLogger("atr.recorder")
 
@@ -109,6 +116,15 @@ class RecorderStats:
 
 
 _STOP = object()
+PROVENANCE_WAIT_S = 15.0  # close() waits this long at most for the provenance record
+
+
+@dataclass(frozen=True)
+class _Provenance:
+    """A queue item: the provenance record and the configuration, ready to write."""
+
+    record: dict[str, str]
+    config_json: bytes
 
 
 class Recorder:
@@ -134,6 +150,7 @@ class Recorder:
         out: str | Path,
         config: RecorderConfig | None = None,
         on_problem: Any = None,
+        context: RunContext | None = None,
     ) -> None:
         self.config = config or RecorderConfig()
         self.recording = Path(out)
@@ -174,6 +191,19 @@ class Recorder:
         sub_key = exprs[0] if len(exprs) == 1 else "**"
         self._subscribers = [session.declare_subscriber(sub_key, self._on_sample)]
         self._closed = False
+        # Provenance is gathered after the subscription exists (loading the configuration takes a
+        # second or two): the recording starts at once, the record follows within a few seconds.
+        self._provenance_thread: threading.Thread | None = None
+        if context is not None:
+            self._provenance_thread = threading.Thread(
+                target=self._gather_provenance, args=(context,), name="provenance", daemon=True
+            )
+            self._provenance_thread.start()
+
+    def _gather_provenance(self, context: RunContext) -> None:
+        record, config_bytes = gather(context, self.recording, self.segment)
+        with self._clock:
+            self._queue.put(_Provenance(record, config_bytes))
 
     # Zenoh callback thread -----------------------------------------------------------------------
 
@@ -199,7 +229,9 @@ class Recorder:
             now = time.monotonic_ns()
             if item is _STOP:
                 return
-            if item is not None and self.failure is None:
+            if isinstance(item, _Provenance) and self.failure is None:
+                self._write_provenance(item)
+            elif item is not None and self.failure is None:
                 try:
                     self._write(*item)
                 except Exception as exc:  # noqa: BLE001 - one message must not stop the others:
@@ -225,6 +257,16 @@ class Recorder:
                     self._writer.flush()
                 except (OSError, RecordingError) as exc:
                     self._fail("*", exc)
+
+    def _write_provenance(self, item: _Provenance) -> None:
+        try:
+            self._writer.add_metadata(METADATA_NAME, item.record)
+            if item.config_json:
+                self._writer.add_attachment(
+                    CONFIG_ATTACHMENT, "application/json", item.config_json, time.time_ns()
+                )
+        except (OSError, RecordingError) as exc:
+            self._fail("*", exc)
 
     def _fail(self, key: str, exc: BaseException) -> None:
         self.failure = exc
@@ -336,17 +378,31 @@ class Recorder:
         self._closed = True
         for sub in self._subscribers:
             sub.undeclare()
+        if self._provenance_thread is not None:  # a short recording still gets its provenance
+            self._provenance_thread.join(timeout=PROVENANCE_WAIT_S)
         with self._clock:
             self._queue.put(_STOP)
         self._thread.join()
         if self.failure is None:
             try:
-                self._writer.close()
+                self._writer.close(metadata={END_METADATA_NAME: self._end_record()})
             except (OSError, RecordingError) as exc:
                 self.failure = exc
         if self.failure is not None:
             raise RecordingError(f"recording {self.path} failed: {self.failure}") from self.failure
         return self.stats
+
+    def _end_record(self) -> dict[str, str]:
+        """The clean-close marker: only a recorder that closed its file writes it."""
+        s = self.stats
+        return {
+            "clean_close": "true",
+            "stop_time_ns": str(time.time_ns()),
+            "messages": str(s.messages),
+            "gaps": str(s.gaps),
+            "refused": str(s.refused),
+            "write_errors": str(s.write_errors),
+        }
 
     def __enter__(self) -> Recorder:
         return self
@@ -405,9 +461,11 @@ def run_recorder(
     config: RecorderConfig | None = None,
     service: str = "recorder",
     ready: threading.Event | None = None,
+    context: RunContext | None = None,
 ) -> RecorderStats:
     """Record until SIGINT/SIGTERM (or `Node.stop()`), then close the file; what `atr record` and
-    the recorder service run. Status and ErrorReports go on `atr/{uav}/{service}/...`.
+    the recorder service run. Status and ErrorReports go on `atr/{uav}/{service}/...`; `context`
+    (what the launcher knows of the run) goes into the provenance record of the file.
 
     Raises:
         RecordingError: the file could not be written.
@@ -421,7 +479,9 @@ def run_recorder(
             if recorder is not None and recorder.failure is not None:
                 node.stop()  # the file itself failed
 
-        recorder = Recorder(node.session, out, config, on_problem=report)
+        recorder = Recorder(
+            node.session, out, config, on_problem=report, context=context or RunContext(uav=uav)
+        )
         node.recorder = recorder
         log.info("recording %s to %s", ", ".join(recorder.config.key_exprs), recorder.path)
         node.ready()

@@ -37,6 +37,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "keygen": ("keygen", "make an Ed25519 key pair for sealing recordings"),
     "seal": ("seal", "seal a recording: a signed manifest of every message"),
     "verify": ("verify", "verify a sealed recording against a trusted public key"),
+    "audit": ("audit", "audit a recording: provenance, completeness, decisions, errors"),
 }
 
 

@@ -37,9 +37,26 @@ def main(argv: list[str] | None = None) -> int:
         default=float(os.environ.get("ATR_RECORDER_FLUSH_S", "1.0")),
         help="max age of an unwritten chunk, s",
     )
+    # What the launcher knows of the run, for the recording's provenance record.
+    parser.add_argument("--layout", default="", help="the layout this recorder runs in")
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="GROUP.FIELD=VALUE",
+        help="a config override the pipeline services run with (repeatable; recorded only)",
+    )
+    parser.add_argument(
+        "--config", metavar="YAML", help="the config file the pipeline runs with (recorded only)"
+    )
+    parser.add_argument(
+        "--input", metavar="MCAP", help="the recording a replay publishes (its SHA-256 is recorded)"
+    )
     args = parser.parse_args(argv)
 
     from bus.node import setup_logging
+    from bus.provenance import RunContext
     from bus.recorder import RecorderConfig, run_recorder
 
     setup_logging("recorder")
@@ -49,6 +66,13 @@ def main(argv: list[str] | None = None) -> int:
             uav=args.uav,
             zenoh_config=args.zenoh,
             config=RecorderConfig(flush_interval_s=args.flush_interval),
+            context=RunContext(
+                uav=args.uav,
+                layout=args.layout,
+                overrides=tuple(args.overrides),
+                config_file=args.config,
+                input_recording=args.input,
+            ),
         )
     except AtrError as exc:
         print(f"recorder: {exc}", file=sys.stderr)

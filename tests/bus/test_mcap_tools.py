@@ -278,3 +278,18 @@ def test_reading_a_corrupted_chunk_raises_a_recording_error_naming_it(tmp_path: 
     offset = _corrupt_chunk(path, 2)
     with pytest.raises(RecordingError, match=rf"bad\.mcap: chunk #3 at offset {offset}: "):
         list(mcap_tools.iter_messages(path))
+
+
+def test_the_data_section_crc_catches_an_edit_no_other_crc_covers(tmp_path: Path) -> None:
+    """A Metadata record has no CRC of its own: an edit of its value (same length) is seen only by
+    the data section's CRC, which the writer records in DataEnd and `check` recomputes."""
+    path = tmp_path / "a.mcap"
+    with mcap_tools.ChunkedWriter(path, metadata={"provenance": {"config_sha256": "aaaa"}}) as w:
+        channel = w.add_channel("atr/uav1/imu", "msgpack", 0)
+        w.add_message(channel, 1, 1, 0, b"x" * 100)
+    assert mcap_tools.check(path) == []
+    data = path.read_bytes()
+    assert data.count(b"aaaa") == 1
+    path.write_bytes(data.replace(b"aaaa", b"bbbb"))
+    problems = mcap_tools.check(path)
+    assert any("data section CRC mismatch" in p for p in problems), problems

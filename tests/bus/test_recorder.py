@@ -160,3 +160,58 @@ def test_kill_9_leaves_a_file_that_recovers_up_to_its_last_chunk(hub: str, tmp_p
     topics = [t for t, _, _ in _messages(fixed)]
     for key in INPUTS:
         assert topics.count(key) == 6, key
+
+
+def test_every_recording_says_what_made_it_and_closes_with_a_marker(
+    hub: str, tmp_path: Path
+) -> None:
+    """Provenance (software, configuration, input) and the clean-close marker, as `atr audit` and a
+    reader of the file see them; the data section's CRC is written and holds."""
+    from mcap.reader import make_reader as reader_of
+
+    from bus import audit, provenance
+
+    source = tmp_path / "input.mcap"
+    source.write_bytes(b"a recording a replay would publish")
+    out = tmp_path / "rec.mcap"
+    watcher = Watcher(hub)
+    try:
+        recorder = atr(
+            hub,
+            "service",
+            "recorder",
+            "--out",
+            str(out),
+            "--layout",
+            "local",
+            "--set",
+            "recognition.descriptor=fpfh",
+            "--input",
+            str(source),
+        )
+        watcher.wait_for("recorder")
+        code, err = finish(helper(hub, "publish", "--frames", "2"))
+        assert code == 0, err
+        time.sleep(0.3)
+        recorder.send_signal(signal.SIGTERM)
+        code, err = finish(recorder)
+        assert code == 0, err
+    finally:
+        watcher.close()
+
+    assert mcap_tools.check(out) == []  # includes the data section's CRC
+    with open(out, "rb") as f:
+        r = reader_of(f)
+        metadata = {m.name: m.metadata for m in r.iter_metadata()}
+        attachments = {a.name: a for a in r.iter_attachments()}
+    record = metadata[provenance.METADATA_NAME]
+    assert record["layout"] == "local" and record["uav"] == "uav1"
+    assert record["overrides"] == '["recognition.descriptor=fpfh"]'
+    assert record["input_sha256"] == provenance.file_sha256(source)
+    assert record["source_sha256"] == provenance.source_sha256()
+    config = attachments[provenance.CONFIG_ATTACHMENT].data
+    assert b'"descriptor": "fpfh"' in config
+    assert record["config_sha256"] == __import__("hashlib").sha256(config).hexdigest()
+    assert metadata[provenance.END_METADATA_NAME]["clean_close"] == "true"
+    report = audit.audit(out)
+    assert report.closed and report.provenance[0]["layout"] == "local"
