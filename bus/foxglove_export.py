@@ -23,7 +23,7 @@ DETECTION_BOX_M = (7.0, 3.6, 2.2)
 
 
 def _parts(T: np.ndarray):  # noqa: ANN202 - (Vector3, Quaternion)
-    from foxglove.messages import Quaternion, Vector3  # noqa: PLC0415
+    from foxglove.messages import Quaternion, Vector3
 
     x, y, z, w = Rotation.from_matrix(np.asarray(T)[:3, :3]).as_quat()
     return (
@@ -33,20 +33,20 @@ def _parts(T: np.ndarray):  # noqa: ANN202 - (Vector3, Quaternion)
 
 
 def _pose(T: np.ndarray):  # noqa: ANN202 - foxglove.messages.Pose
-    from foxglove.messages import Pose  # noqa: PLC0415
+    from foxglove.messages import Pose
 
     position, orientation = _parts(T)
     return Pose(position=position, orientation=orientation)
 
 
 def _time(stamp_ns: int):  # noqa: ANN202
-    from foxglove.messages import Timestamp  # noqa: PLC0415
+    from foxglove.messages import Timestamp
 
     return Timestamp(sec=int(stamp_ns // 1_000_000_000), nsec=int(stamp_ns % 1_000_000_000))
 
 
 def _transform(stamp_ns: int, child: str, T: np.ndarray):  # noqa: ANN202
-    from foxglove.messages import FrameTransform, FrameTransforms  # noqa: PLC0415
+    from foxglove.messages import FrameTransform, FrameTransforms
 
     translation, rotation = _parts(T)
     return FrameTransforms(
@@ -63,7 +63,7 @@ def _transform(stamp_ns: int, child: str, T: np.ndarray):  # noqa: ANN202
 
 
 def _cloud(stamp_ns: int, points_m: np.ndarray):  # noqa: ANN202
-    from foxglove.messages import PackedElementField, PackedElementFieldNumericType, PointCloud  # noqa: PLC0415
+    from foxglove.messages import PackedElementField, PackedElementFieldNumericType, PointCloud
 
     f32 = PackedElementFieldNumericType.Float32
     fields = [PackedElementField(name=n, offset=4 * i, type=f32) for i, n in enumerate("xyz")]
@@ -78,8 +78,10 @@ def _cloud(stamp_ns: int, points_m: np.ndarray):  # noqa: ANN202
     )
 
 
-def _detections(message: dict):  # noqa: ANN202
-    from foxglove.messages import (  # noqa: PLC0415
+def _detections(  # noqa: ANN202
+    message: dict, ids: list[str] | None = None, texts: list[str] | None = None
+):
+    from foxglove.messages import (
         Color,
         CubePrimitive,
         SceneEntity,
@@ -105,7 +107,7 @@ def _detections(message: dict):  # noqa: ANN202
             SceneEntity(
                 timestamp=_time(message["stamp_ns"]),
                 frame_id="world",
-                id=f"detection-{i}",
+                id=ids[i] if ids else f"detection-{i}",
                 cubes=[
                     CubePrimitive(
                         pose=_pose(box),
@@ -122,12 +124,26 @@ def _detections(message: dict):  # noqa: ANN202
                         font_size=14.0,
                         scale_invariant=True,
                         color=Color(r=1, g=1, b=1, a=1),
-                        text=f"{det['target']} {det['score']:.2f} ({det['descriptor']})",
+                        text=texts[i]
+                        if texts
+                        else f"{det['target']} {det['score']:.2f} ({det['descriptor']})",
                     )
                 ],
             )
         )
     return SceneUpdate(entities=entities)
+
+
+def _tracks(message: dict):  # noqa: ANN202 - the confirmed and lost tracks as boxes labelled with their ids
+    shown = [t for t in message["tracks"] if t["state"] != "tentative"]
+    return _detections(
+        {
+            "stamp_ns": message["stamp_ns"],
+            "detections": [t | {"score": 0.0, "descriptor": ""} for t in shown],
+        },
+        ids=[f"track-{t['id']}" for t in shown],
+        texts=[f"track {t['id']} {t['target']} {t['state']} ({t['hits']} hits)" for t in shown],
+    )
 
 
 def export_foxglove(in_path: str | Path, out_path: str | Path) -> dict[str, int]:
@@ -137,14 +153,14 @@ def export_foxglove(in_path: str | Path, out_path: str | Path) -> dict[str, int]
         RecordingError: the input cannot be read.
 
     """
-    import foxglove  # noqa: PLC0415
-    from foxglove.channels import (  # noqa: PLC0415
+    import foxglove
+    from foxglove.channels import (
         FrameTransformsChannel,
         PointCloudChannel,
         RawImageChannel,
         SceneUpdateChannel,
     )
-    from foxglove.messages import RawImage  # noqa: PLC0415
+    from foxglove.messages import RawImage
 
     counts: dict[str, int] = {}
     channels: dict[str, object] = {}
@@ -210,4 +226,6 @@ def export_foxglove(in_path: str | Path, out_path: str | Path) -> dict[str, int]
                 )
             elif topic.endswith("/detections"):
                 log(f"/{parts[1]}/detections", SceneUpdateChannel, _detections(data), stamp)
+            elif topic.endswith("/tracks"):
+                log(f"/{parts[1]}/tracks", SceneUpdateChannel, _tracks(data), stamp)
     return counts

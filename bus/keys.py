@@ -1,4 +1,4 @@
-"""Key expressions of ARCHITECTURE.md §3 and the message type each one carries."""
+"""Key expressions of the contract (docs/architecture.md) and the message type each one carries."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ _TABLE: list[tuple[str, str]] = [
     ("atr/{uav}/pose/relative", "RelativePose"),
     ("atr/{uav}/sfm/cloud", "PointCloud"),
     ("atr/{uav}/detections", "Detections"),
+    ("atr/{uav}/tracks", "Tracks"),
     ("atr/templates/{target}/{descriptor}", "Template"),
     ("atr/{uav}/{service}/status", "Status"),
     ("atr/{uav}/{service}/errors", "ErrorReport"),
@@ -42,7 +43,7 @@ def message_type(key: str) -> str:
     for pattern, name in _COMPILED:
         if pattern.match(key):
             return name
-    raise BusError(f"key {key!r} is not a key expression of the contract (ARCHITECTURE.md §3)")
+    raise BusError(f"key {key!r} is not a key expression of the contract (docs/architecture.md)")
 
 
 def image(uav: str) -> str:
@@ -78,6 +79,11 @@ def sfm_cloud(uav: str) -> str:
 def detections(uav: str) -> str:
     """Key of the detections of `uav`."""
     return f"atr/{uav}/detections"
+
+
+def tracks(uav: str) -> str:
+    """Key of the tracks of `uav` (services/tracker)."""
+    return f"atr/{uav}/tracks"
 
 
 def template(target: str, descriptor: str) -> str:

@@ -187,3 +187,70 @@ def _f1(tp: np.ndarray, fp: np.ndarray, fn: np.ndarray, axis: int = -1) -> np.nd
     denominator = 2 * t + fp.sum(axis=axis) + fn.sum(axis=axis)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(denominator > 0, 2 * t / denominator, np.nan)
+
+
+@dataclass(frozen=True)
+class TrackScore:
+    """Track-level figures of one flight (ours, beside the paper's per-scene F1).
+
+    Attributes:
+        counts: per scene, the confirmed tracks judged like detections (`score_scene`; the most
+            supported track is the hypothesis): TP, FP, FN, TN totals.
+        false_tracks: confirmed tracks that never lay within the TP bound of a present target.
+        scenes_to_confirm: scenes from the first scene with the target to the first TP, counting both
+            (1: confirmed on the first scene; NaN: never, or no scene has the target).
+        t_error_median_m: median position error of the TP scenes' tracks, metres (NaN without a TP).
+
+    """
+
+    counts: Counts
+    false_tracks: int
+    scenes_to_confirm: float
+    t_error_median_m: float
+
+
+def score_tracks(
+    true_positions_m: Sequence[Sequence[np.ndarray]],
+    tracks: Sequence[Sequence[tuple[int, np.ndarray]]],
+    *,
+    max_error_m: float = MAX_TRANSLATION_ERROR_M,
+) -> TrackScore:
+    """Judge a flight's confirmed tracks scene by scene.
+
+    Args:
+        true_positions_m: per scene, (3,) positions of the target instances present (as `score_scene`).
+        tracks: per scene, (track id, (3,) fused position) of the confirmed tracks for the target, most
+            supported first.
+        max_error_m: translation error bound of a TP, metres (§III-C: 2 m).
+
+    Returns:
+        The flight's track-level figures.
+
+    Raises:
+        InputError: the two sequences have different numbers of scenes.
+
+    """
+    if len(true_positions_m) != len(tracks):
+        raise InputError(f"{len(true_positions_m)} scenes of truth but {len(tracks)} of tracks")
+    scores, confirmed, true_ids = [], set(), set()
+    first_target = first_tp = None
+    for k, (truth, scene_tracks) in enumerate(zip(true_positions_m, tracks, strict=True)):
+        score = score_scene(truth, [p for _, p in scene_tracks], max_error_m=max_error_m)
+        scores.append(score)
+        if truth and first_target is None:
+            first_target = k
+        if score.outcome == "tp" and first_tp is None:
+            first_tp = k
+        for track_id, p in scene_tracks:
+            confirmed.add(track_id)
+            if any(np.linalg.norm(np.asarray(p) - np.asarray(t)) < max_error_m for t in truth):
+                true_ids.add(track_id)
+    errors = [s.translation_error_m for s in scores if s.outcome == "tp"]
+    return TrackScore(
+        counts=count(scores),
+        false_tracks=len(confirmed - true_ids),
+        scenes_to_confirm=float(first_tp - first_target + 1)
+        if first_target is not None and first_tp is not None
+        else float("nan"),
+        t_error_median_m=float(np.median(errors)) if errors else float("nan"),
+    )

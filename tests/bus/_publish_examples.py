@@ -17,6 +17,7 @@ KEYS = {
     "CameraPose": "atr/uav1/pose/camera",
     "RelativePose": "atr/uav1/pose/relative",
     "Detections": "atr/uav1/detections",
+    "Tracks": "atr/uav1/tracks",
     "Template": "atr/templates/t72/fpfh",
     "Truth": "sim/uav1/truth",
     "Status": "atr/uav1/x/status",

@@ -27,6 +27,13 @@ CONTRACT = {
     "t_error_median_m",
     "time_per_scene_ms",
     "scenes",
+    "track_tp",
+    "track_fp",
+    "track_fn",
+    "track_f1",
+    "false_tracks",
+    "scenes_to_confirm",
+    "track_t_error_median_m",
 }
 
 

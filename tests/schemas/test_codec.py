@@ -98,6 +98,23 @@ def example(name: str) -> dict:
             "count": 1,
         },
         "Timing": {"service": "sfm", "input_seq": 4, "stages_ms": {"klt": 3.5}, "total_ms": 3.5},
+        "Tracks": {
+            "detections_seq": 4,
+            "tracks": [
+                {
+                    "id": 1,
+                    "target": "t72",
+                    "state": "confirmed",
+                    "T_world_target": T,
+                    "covariance": np.diag([0.1, 0.1, 0.1, 0.01]),
+                    "yaw_ambiguous": False,
+                    "hits": 3,
+                    "supporting_stamps_ns": [1, 2, 1_000_000_123],
+                    "first_seen_ns": 1,
+                    "last_seen_ns": 1_000_000_123,
+                }
+            ],
+        },
     }
     return base | bodies[name]
 
@@ -132,6 +149,7 @@ def test_every_schema_is_covered_and_valid_json_schema():
         "Status",
         "Template",
         "Timing",
+        "Tracks",
         "Truth",
     }
     for name in schemas.names():
@@ -216,6 +234,7 @@ def test_oversized_payload_is_refused_before_decoding():
         ("atr/templates/t72/hod-s", "Template"),
         ("atr/uav1/sfm/errors", "ErrorReport"),
         ("sim/uav1/truth", "Truth"),
+        ("atr/uav2/tracks", "Tracks"),
     ],
 )
 def test_key_table(key, type_name):

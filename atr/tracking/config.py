@@ -1,0 +1,69 @@
+"""Parameters of the tracker that fuses per-scene detections into confirmed targets (ours, not the paper's).
+
+Every gate is a named multiple ``k_*`` of one physical scale: the per-detection position uncertainty
+``position_sigma_m`` (metres) or heading uncertainty ``yaw_sigma_deg``. Ages count scenes (one Detections
+message is one scene); a gap in the stamps counts as the scenes it spans (docs/tracking.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from atr.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """How detections are associated, confirmed, fused and aged.
+
+    Attributes:
+        position_sigma_m: standard deviation of one detection's position along each axis, metres. A quarter
+            of the 2 m TP bound (§III-C): a detection the paper counts as right lies within 4 sigma.
+        yaw_sigma_deg: standard deviation of one detection's heading, degrees.
+        k_gate: association gate on position, in standard deviations of the innovation (Mahalanobis
+            distance over x, y, z; 3.5 keeps 99 % of a 3-dof Gaussian's samples).
+        k_heading_gate: association gate on heading, in standard deviations of the heading innovation.
+        k_process: position random walk per scene / position_sigma_m: how far a track's belief may move
+            between scenes (a parked vehicle creeping, or the navigation drifting under the cloud).
+        yaw_process_deg: heading random walk per scene, degrees.
+        confirm_hits: M of "M of N": hits within the last `confirm_window` scenes that confirm a track.
+        confirm_window: N of "M of N", scenes.
+        delete_after_misses: consecutive missed scenes after which a confirmed (then lost) track is deleted.
+        flip_evidence: detections at a track's place whose heading is 180 degrees off it before the track
+            treats heading as known only modulo 180 degrees (a vehicle whose ends look alike to the matcher).
+        supporting_max: how many of the latest supporting detections' stamps a track keeps.
+
+    """
+
+    position_sigma_m: float = 0.5
+    yaw_sigma_deg: float = 10.0
+    k_gate: float = 3.5
+    k_heading_gate: float = 3.0
+    k_process: float = 0.1
+    yaw_process_deg: float = 1.0
+    confirm_hits: int = 2
+    confirm_window: int = 3
+    delete_after_misses: int = 5
+    flip_evidence: int = 2
+    supporting_max: int = 32
+
+    def __post_init__(self) -> None:
+        for name in ("position_sigma_m", "yaw_sigma_deg", "k_gate", "k_heading_gate"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"tracking.{name} = {value} must be a finite number > 0")
+        for name in ("k_process", "yaw_process_deg"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ConfigError(f"tracking.{name} = {value} must be a finite number >= 0")
+        for name in ("confirm_hits", "confirm_window", "delete_after_misses", "flip_evidence"):
+            if getattr(self, name) < 1:
+                raise ConfigError(f"tracking.{name} = {getattr(self, name)} must be >= 1")
+        if self.confirm_hits > self.confirm_window:
+            raise ConfigError(
+                f"tracking.confirm_hits = {self.confirm_hits} must be <= confirm_window = "
+                f"{self.confirm_window} (M of N)"
+            )
+        if self.supporting_max < 1:
+            raise ConfigError(f"tracking.supporting_max = {self.supporting_max} must be >= 1")

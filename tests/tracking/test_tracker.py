@@ -1,0 +1,194 @@
+"""The tracker: association, confirmation, fusion, heading ambiguity, ageing, bad input, determinism."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from atr.config import load_config
+from atr.errors import ConfigError, InputError
+from atr.tracking import Tracker, TrackingConfig, TrackInput
+
+STEP_NS = 500_000_000
+TARGET_M = np.array([12.0, -7.0, 0.0])
+TARGET_YAW = 0.7
+
+
+def det(p, yaw=None, target="t72") -> TrackInput:
+    return TrackInput(target, np.asarray(p, np.float64), yaw)
+
+
+def stamp(k: int) -> int:
+    return 1_000_000_000 + k * STEP_NS
+
+
+def orbit_scenes(seed: int, scenes: int = 80, sigma_m: float = 0.4, p_detect: float = 0.8):
+    """Noisy detections of one target along an orbit, missed scenes, and clutter false positives
+    scattered over the 200 m around it with random headings (about one every other scene)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(scenes):
+        ds = []
+        if rng.random() < p_detect:
+            ds.append(det(TARGET_M + rng.normal(0, sigma_m, 3), TARGET_YAW + rng.normal(0, 0.1)))
+        if rng.random() < 0.5:
+            ds.append(det(rng.uniform(-100, 100, 3) * [1, 1, 0], rng.uniform(-math.pi, math.pi)))
+        rng.shuffle(ds)
+        out.append(ds)
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_orbit_one_confirmed_target_fused_better_than_a_detection(seed):
+    tracker = Tracker()
+    errors, confirmed_ids, first_confirmed = [], set(), None
+    for k, ds in enumerate(orbit_scenes(seed)):
+        errors += [
+            np.linalg.norm(d.position_m - TARGET_M)
+            for d in ds
+            if d.yaw_rad is not None and np.linalg.norm(d.position_m - TARGET_M) < 3
+        ]
+        tracks = tracker.update(ds, stamp(k))
+        for t in tracks:
+            if t.state != "tentative":
+                confirmed_ids.add(t.id)
+                if first_confirmed is None:
+                    first_confirmed = k
+    assert len(confirmed_ids) == 1, "clutter never recurs at one place: one confirmed track"
+    (track,) = [t for t in tracker.tracks if t.id in confirmed_ids]
+    fused_error = np.linalg.norm(track.position_m - TARGET_M)
+    assert fused_error < 0.5 * np.median(errors)
+    assert abs(math.remainder(track.yaw_rad - TARGET_YAW, 2 * math.pi)) < 0.05
+    assert first_confirmed is not None and first_confirmed <= 3
+    assert track.hits > 50 and len(track.supporting_stamps_ns) == TrackingConfig().supporting_max
+    # the covariance says it is known better than one detection (steady state of the random walk)
+    assert np.all(np.linalg.eigvalsh(track.P_position) < TrackingConfig().position_sigma_m ** 2 / 5)
+    assert track.covariance.shape == (4, 4)
+
+
+def test_two_targets_keep_their_tracks_whatever_the_detection_order():
+    a, b = np.array([0.0, 0, 0]), np.array([6.0, 0, 0])
+    tracker = Tracker()
+    for k in range(6):
+        ds = [det(a, 0.0), det(b, 1.0)]
+        tracker.update(ds[::-1] if k % 2 else ds, stamp(k))
+    assert [(t.id, t.state, t.hits) for t in tracker.tracks] == [
+        (1, "confirmed", 6),
+        (2, "confirmed", 6),
+    ]
+    np.testing.assert_allclose(tracker.tracks[0].position_m, a)
+    np.testing.assert_allclose(tracker.tracks[1].position_m, b)
+
+
+def test_classes_do_not_mix():
+    tracker = Tracker()
+    for k in range(3):
+        tracker.update([det([0, 0, 0], 0.0, "t72"), det([0.3, 0, 0], 0.0, "truck6x6")], stamp(k))
+    assert sorted(t.target for t in tracker.tracks) == ["t72", "truck6x6"]
+
+
+def test_m_of_n_confirmation_and_tentative_deletion():
+    tracker = Tracker(TrackingConfig(confirm_hits=2, confirm_window=3))
+    assert tracker.update([det([0, 0, 0])], stamp(0))[0].state == "tentative"
+    assert tracker.update([], stamp(1))[0].state == "tentative"  # 1 of 2, may still reach 2 of 3
+    assert tracker.update([det([0.1, 0, 0])], stamp(2))[0].state == "confirmed"
+    lone = Tracker()
+    lone.update([det([0, 0, 0])], stamp(0))
+    lone.update([], stamp(1))
+    assert lone.update([], stamp(2)) == []  # cannot reach 2 of 3 any more
+
+
+def test_confirmed_track_goes_lost_then_is_deleted():
+    config = TrackingConfig(delete_after_misses=3)
+    tracker = Tracker(config)
+    for k in range(3):
+        tracker.update([det([0, 0, 0])], stamp(k))
+    states = [[t.state for t in tracker.update([], stamp(k))] for k in range(3, 6)]
+    assert states == [["lost"], ["lost"], []]
+    # a lost track seen again is confirmed again, same id
+    tracker = Tracker(config)
+    for k in range(3):
+        tracker.update([det([0, 0, 0])], stamp(k))
+    tracker.update([], stamp(3))
+    (track,) = tracker.update([det([0.2, 0, 0])], stamp(4))
+    assert (track.id, track.state) == (1, "confirmed")
+
+
+def test_a_gap_of_many_scenes_ages_tracks_by_the_scenes_it_spans():
+    tracker = Tracker()
+    for k in range(4):
+        tracker.update([det([0, 0, 0])], stamp(k))
+    # 40 scene periods later the old track is gone; the detection starts a new one
+    (track,) = tracker.update([det([0, 0, 0])], stamp(44))
+    assert (track.id, track.state) == (2, "tentative")
+    # a short gap (2 periods) only coasts, and the widened covariance still lets it associate
+    tracker = Tracker()
+    for k in range(4):
+        tracker.update([det([0, 0, 0])], stamp(k))
+    (track,) = tracker.update([det([1.0, 0, 0])], stamp(6))
+    assert (track.id, track.state) == (1, "confirmed")
+
+
+def test_heading_gate_and_one_vehicle_per_place():
+    tracker = Tracker()
+    for k in range(3):
+        tracker.update([det([0, 0, 0], 0.0)], stamp(k))
+    # the same place at 90 degrees: not this track's target, and no second track at its place
+    (track,) = tracker.update([det([0, 0, 0], math.pi / 2)], stamp(3))
+    assert (track.id, track.hits, track.state) == (1, 3, "lost")
+
+
+def test_heading_ambiguity_only_once_the_detections_show_it():
+    config = TrackingConfig(flip_evidence=2)
+    tracker = Tracker(config)
+    for k in range(3):
+        tracker.update([det([0, 0, 0], 0.1)], stamp(k))
+    hits = [tracker.update([det([0, 0, 0], 0.1 + math.pi)], stamp(k))[0].hits for k in (3, 4, 5)]
+    track = tracker.tracks[0]
+    assert hits == [3, 3, 4], "two flipped detections are evidence; the third is fused"
+    assert track.yaw_ambiguous and len(tracker.tracks) == 1
+    assert abs(math.remainder(track.yaw_rad - 0.1, math.pi)) < 1e-9
+
+
+def test_bad_input_is_refused_and_leaves_the_tracks_unchanged():
+    tracker = Tracker()
+    tracker.update([det([0, 0, 0], 0.0)], stamp(0))
+    before = [(t.id, t.hits, t.position_m.tolist()) for t in tracker.tracks]
+    with pytest.raises(InputError, match="nan"):
+        tracker.update([det([0, 0, 0], 0.0), det([np.nan, 0, 0], 0.0)], stamp(1))
+    with pytest.raises(InputError, match="heading"):
+        tracker.update([det([0, 0, 0], float("inf"))], stamp(1))
+    with pytest.raises(InputError, match="not after"):
+        tracker.update([det([0, 0, 0], 0.0)], stamp(0))
+    with pytest.raises(InputError, match="3 finite metres"):
+        tracker.update([det([0, 0], 0.0)], stamp(1))
+    assert [(t.id, t.hits, t.position_m.tolist()) for t in tracker.tracks] == before
+    assert tracker.update([det([0, 0, 0], 0.0)], stamp(1))[0].state == "confirmed"
+
+
+def test_same_inputs_same_tracks():
+    def run():
+        tracker = Tracker()
+        return [
+            [(t.id, t.state, t.T_world_target.tobytes(), t.covariance.tobytes()) for t in ts]
+            for ts in (tracker.update(ds, stamp(k)) for k, ds in enumerate(orbit_scenes(5)))
+        ]
+
+    assert run() == run()
+
+
+def test_config_group_and_validation():
+    assert load_config(overrides=["tracking.confirm_hits=3"]).tracking.confirm_hits == 3
+    with pytest.raises(ConfigError, match="confirm_hits"):
+        load_config(overrides=["tracking.confirm_hits=4"])
+    with pytest.raises(ConfigError, match="position_sigma_m"):
+        TrackingConfig(position_sigma_m=0.0)
+
+
+def test_from_pose_reads_the_heading():
+    c, s = math.cos(2.0), math.sin(2.0)
+    T = np.array([[c, -s, 0, 1], [s, c, 0, 2], [0, 0, 1, 3], [0, 0, 0, 1.0]])
+    d = TrackInput.from_pose("t72", T)
+    assert d.yaw_rad == pytest.approx(2.0) and d.position_m.tolist() == [1, 2, 3]
