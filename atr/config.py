@@ -1,4 +1,4 @@
-"""The one typed configuration of the system: each subsystem's config, with the paper's values as defaults.
+"""The one typed configuration of the system: every subsystem's config group in one tree.
 
 Every group is a frozen dataclass defined next to its algorithm (`atr/<pkg>/config.py`) and validated in its
 constructor. This module gathers them and applies overrides written as `group.field=value`, the form used by
@@ -24,6 +24,7 @@ from atr.imu.config import ImuConfig
 from atr.recognition.config import RecognitionConfig
 from atr.sfm.config import SfmConfig
 from atr.sim.config import SimConfig
+from atr.tracking.config import TrackingConfig
 
 
 @dataclass(frozen=True)
@@ -66,6 +67,7 @@ class AtrConfig:
     sfm: SfmConfig = field(default_factory=SfmConfig)
     recognition: RecognitionConfig = field(default_factory=RecognitionConfig)
     baselines2d: Baseline2dConfig = field(default_factory=Baseline2dConfig)
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
 
 
 def _coerce(value: Any, annotation: Any, where: str) -> Any:
@@ -104,6 +106,8 @@ def _with(config: Any, path: list[str], value: Any, where: str) -> Any:
     if not dataclasses.is_dataclass(config):
         raise ConfigError(f"{where}: {type(config).__name__} has no fields")
     hints = typing.get_type_hints(type(config))
+    if path[0] not in hints and hasattr(config, "field_path"):  # a group routing names to its parts
+        path = [*config.field_path(path[0]), *path[1:]]
     name = path[0]
     if name not in hints:
         fields = sorted(f.name for f in dataclasses.fields(config))

@@ -224,7 +224,7 @@ def build_templates(config, descriptor: str, targets: tuple[str, ...] = TARGETS)
     from atr.sim.vehicles import VEHICLES
 
     cfg = dataclasses.replace(config, descriptor=descriptor)
-    key = hashlib.sha256(repr((cfg, TEMPLATE_VERSION, targets)).encode()).hexdigest()[:16]
+    key = hashlib.sha256(repr((cfg.template, TEMPLATE_VERSION, targets)).encode()).hexdigest()[:16]
     path = DEFAULT_CACHE / "templates" / f"{descriptor}-{key}.pkl"
     if path.exists():
         return pickle.loads(path.read_bytes())
@@ -253,8 +253,8 @@ def _vehicle_under_best(detections: list, meta: dict, vehicles: dict[tuple, tupl
     ``vehicles``), or the report's "elsewhere"."""
     from atr.evaluation.metrics import vehicle_under
     from atr.evaluation.runner import Flight
+    from atr.evaluation.tables import NOT_ON_A_VEHICLE, flight_vehicles
     from atr.sim.config import SimConfig
-    from cli.evaluate import NOT_ON_A_VEHICLE, flight_vehicles
 
     key = (meta["seed"], meta["scenario"], meta["run"])
     if key not in vehicles:

@@ -79,7 +79,7 @@ def detect_and_describe(image: np.ndarray, pair: str, config: Baseline2dConfig) 
         sfm = SfmConfig(
             surf_max_keypoints=config.max_keypoints, surf_blob_threshold=config.surf_blob_threshold
         )
-        from atr.sfm import Surf  # noqa: PLC0415 - numba kernels load only for this pair
+        from atr.sfm import Surf  # numba kernels load only for this pair
 
         keypoints, desc = Surf(sfm).detect_and_compute(gray.astype(np.float32) / 255.0)
         return Features2d(

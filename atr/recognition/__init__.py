@@ -1,6 +1,13 @@
 """3D ATR module (paper §II-A offline templates, §II-B-2 online matcher): pure functions on numpy arrays."""
 
-from atr.recognition.config import DESCRIPTORS, RecognitionConfig
+from atr.recognition.config import (
+    DESCRIPTORS,
+    GroundConfig,
+    MatcherConfig,
+    RecognitionConfig,
+    TemplateConfig,
+)
+from atr.recognition.ground import height_above_ground, lowest_per_cell, terrain_height_at
 from atr.recognition.matcher import (
     STAGES,
     Detection,
@@ -10,20 +17,21 @@ from atr.recognition.matcher import (
 )
 from atr.recognition.steps import (
     Correspondences,
+    HoughSettings,
     Hypothesis,
+    PointSet,
     Verification,
+    VerifySettings,
+    YawWindow,
     descriptor_sq_distances,
     drop_repeated_hypotheses,
     filter_smooth_surfaces,
     group_geometrically_consistent,
     group_upright_hough,
-    height_above_ground,
     knndr_from_distances,
-    lowest_per_cell,
     match_knndr,
     ransac_per_group,
     rigid_transform,
-    terrain_height_at,
     uniform_subsample,
     upright_rigid_transform,
     verify_with_icp,
@@ -41,11 +49,18 @@ __all__ = [
     "STAGES",
     "Correspondences",
     "Detection",
+    "GroundConfig",
+    "HoughSettings",
     "Hypothesis",
+    "MatcherConfig",
+    "PointSet",
     "RecognitionConfig",
     "RecognitionResult",
     "Template",
+    "TemplateConfig",
     "Verification",
+    "VerifySettings",
+    "YawWindow",
     "build_template",
     "filter_smooth_surfaces",
     "descriptor_sq_distances",

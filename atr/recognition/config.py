@@ -1,5 +1,9 @@
 """Parameters of the 3D ATR module (paper §II-A offline phase, §II-B-2 online phase).
 
+Three parts: what shapes a template (``TemplateConfig``), the online matcher (``MatcherConfig``) and the
+ground-vehicle prior (``GroundConfig``). ``RecognitionConfig`` holds them and is the group users set:
+``--set recognition.knndr_k=5`` (or ``recognition.matcher.knndr_k=5``) reaches the part that owns the field.
+
 Every geometric threshold is a named multiple ``k_*`` of one physical scale, ``resolution_m`` (the uniform
 subsampling resolution of model and scene). Values the paper gives are cited by section; the others say
 where they come from (PCL's recognition tutorial, or measurements on simulator runs kept apart from the
@@ -8,35 +12,103 @@ evaluation runs, see docs/recognition.md).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, fields
+from typing import Any, Literal, get_args
 
 from atr.errors import ConfigError
 
-DESCRIPTORS: tuple[str, ...] = ("shot", "usc", "3dsc", "fpfh", "rops", "hod", "hod-s")
+Descriptor = Literal["shot", "usc", "3dsc", "fpfh", "rops", "hod", "hod-s"]
+DESCRIPTORS: tuple[str, ...] = get_args(Descriptor)
 """Descriptor names the matcher accepts (paper Table III)."""
 
 
 @dataclass(frozen=True)
-class RecognitionConfig:
-    """Configuration of template building and of the online matcher.
+class TemplateConfig:
+    """What shapes a template (§II-A), and so the scene's description, which must match it.
+
+    The template cache is keyed on this part alone: changing a matcher or ground setting rebuilds nothing.
+    The scene is subsampled, given normals and cut at the ground exactly as the template was.
 
     Attributes:
         resolution_m: uniform subsampling resolution of model and scene, metres (§II-A, §II-B-2: 0.3 m).
             Every geometric threshold below is a multiple of it.
-        normal_k: neighbours of the plane fit that gives each vertex its normal (§II-B-2: six).
-        knndr_k: k of the kNNDR matching (§II-B-2: k = 10).
-        ransac_iterations: RANSAC iterations per correspondence group (§II-B-2: 1000).
-        descriptor: default 3D descriptor, one of ``DESCRIPTORS`` (Table III).
+        normal_k: neighbours of the plane fit that gives each vertex its normal, in the template and in
+            the scene alike. The paper uses six (§II-B-2); 15 is ours: SfM depth noise needs the wider fit
+            (docs/recognition.md, "Steps and choices").
+        descriptor: 3D descriptor of the templates and the scene, one of ``DESCRIPTORS`` (Table III).
         k_support_radius: descriptor support radius / resolution. The paper uses rho x r with rho "as
             suggested by the authors of each descriptor" (§III-B); PCL's tutorial advises 5-20 x the
-            mean spacing. 5 x 0.3 m = 1.5 m covers a T-72 turret or hull corner (~80 vertices).
+            mean spacing. 10 x 0.3 m = 3 m was measured on the tuning set (docs/recognition.md).
+        ground_vehicles: the targets are ground vehicles in a z-up world frame (template frame: origin on the
+            ground, z up, as ``atr.sim.vehicles``). Then the scene's ground is estimated
+            (``steps.height_above_ground``) and removed from the description surface, the template is cut
+            at the same height, and keypoints are restricted to the height band a target can occupy. It
+            replaces the smooth-surface filter's job on the ground, which SfM noise defeats
+            (docs/recognition.md). Applied only when every template says it stands on the ground.
+        k_ground_cut: scene vertices less than this / resolution above the ground are ground; template
+            vertices lower than it above the model's base are dropped alike.
+        template_samples_per_m2: dense surface sampling of the CAD mesh before HPR (§II-A), points per m^2.
+        template_elevations_deg: elevations of the HPR viewpoint rings (§II-A); each ring has a view per
+            azimuth, and the matcher uses for each scene vertex the ring nearest the camera's elevation seen
+            from it (the camera position is known). 30 deg is
+            the paper's medium obliquity, from which its 2D templates were taken (§III-D).
+        template_azimuths_deg: azimuths of the HPR viewpoints; each (azimuth, elevation) is a separate view of the
+            template, matched, grouped and verified on its own (12 views every 30 deg: measured in
+            docs/recognition.md, one view only recognises within about +-30 deg of it). One view is the
+            paper's choice (§II-A), several cover the orbit's 360 deg (docs/recognition.md).
+        template_distance_m: distance of the HPR viewpoints from the model centre (scenario 1 range, Table II).
+        hpr_radius_factor: Open3D HPR spherical-flip radius as a multiple of the viewpoint distance
+            (Katz et al. 2007; Open3D's example uses 100 x the diameter).
+
+    """
+
+    resolution_m: float = 0.3
+    normal_k: int = 15
+    descriptor: Descriptor = "shot"
+    k_support_radius: float = 10.0
+    ground_vehicles: bool = True
+    k_ground_cut: float = 1.0
+    template_samples_per_m2: float = 400.0
+    template_elevations_deg: tuple[float, ...] = (10.0, 35.0)
+    template_azimuths_deg: tuple[float, ...] = tuple(30.0 * i for i in range(12))
+    template_distance_m: float = 50.0
+    hpr_radius_factor: float = 100.0
+
+    def __post_init__(self) -> None:
+        """Validate every field; raise ConfigError naming the bad value."""
+        _check_fields(self)
+
+    @property
+    def support_radius_m(self) -> float:
+        """Descriptor support radius, metres."""
+        return self.k_support_radius * self.resolution_m
+
+    @property
+    def ground_cut_m(self) -> float:
+        """Height below which scene and template vertices count as ground, metres."""
+        return self.k_ground_cut * self.resolution_m
+
+
+@dataclass(frozen=True)
+class MatcherConfig:
+    """The online matcher's settings (§II-B-2): keypoints, matching, grouping, RANSAC, verification.
+
+    Distances are multiples ``k_*`` of the template part's ``resolution_m``.
+
+    Attributes:
+        max_scene_points: scenes larger than this are refused (InputError) before any work.
+        max_scene_keypoints: at most this many filtered scene vertices are described (evenly thinned,
+            deterministic); bounds the describe time on dense LIDAR scenes.
         smooth_angle_rad: a vertex whose normal deviates from its neighbours' normals by less than this
             mean angle lies on a smooth surface and is filtered out of the keypoints (§II-B-2). 10 deg keeps
             edges and curved parts and removes ground, roofs and walls (measured, docs/recognition.md).
+        knndr_k: k of the kNNDR matching (§II-B-2: k = 10).
         knndr_ratio: a model descriptor among the k nearest is kept as a correspondence when its distance is
             below this fraction of the k-th (the "background") distance. 0.8 is Lowe's NNDR value, also the
-            paper's 2D threshold (§III-B).
+            paper's 2D threshold (§III-B); 1.0 (every one of the k - 1 nearest is a candidate, the grouping
+            does the rejecting) scores higher on SfM clouds (docs/recognition.md).
         max_correspondences: keep at most this many best correspondences before grouping (bounds the
             quadratic grouping time on 260k-point LIDAR scenes).
         knn_across_views: with a multi-view template, take each keypoint's k nearest over all views of its
@@ -49,6 +121,13 @@ class RecognitionConfig:
         max_groups: at most this many groups (largest first) become RANSAC hypotheses. 20: more than 10
             let T-72 fits on roofs through until the terrain rule below removed them; with it 20 scores
             higher with six of the seven descriptors on both tuning sets (docs/recognition.md, "Roofs").
+        hough_yaw_bin_deg: heading bin of the upright Hough grouping (``steps.group_upright_hough``), used
+            for ground vehicles instead of pairwise consistency; 10 deg moves a point 3.5 m from the
+            centre by 0.6 m, about one accumulator cell.
+        k_hough_cell: position cell of the Hough accumulator / resolution.
+        view_yaw_margin_deg: with per-view templates and a known camera position, a view votes only for
+            headings that put the camera within half the view spacing plus this margin of its azimuth.
+        ransac_iterations: RANSAC iterations per correspondence group (§II-B-2: 1000).
         k_ransac_inlier: RANSAC inlier distance / resolution (one voxel of jitter on each side).
         k_same_hypothesis: two RANSAC hypotheses of one template view whose poses differ by less than
             this / resolution in translation and ``same_hypothesis_deg`` in rotation are verified once
@@ -78,71 +157,27 @@ class RecognitionConfig:
             (the ground under and around the target is not part of the model).
         k_nms: hypotheses whose target centres are closer than this / resolution are one location; only the
             best-scoring target is reported there (recognition between the T-72 and its confusers).
-        max_scene_points: scenes larger than this are refused (InputError) before any work.
-        max_scene_keypoints: at most this many filtered scene vertices are described (evenly thinned,
-            deterministic); bounds the describe time on dense LIDAR scenes.
-        ground_vehicles: the targets are ground vehicles in a z-up world frame (template frame: origin on the
-            ground, z up, as ``atr.sim.vehicles``). Then the scene's ground is estimated
-            (``steps.height_above_ground``) and removed from the description surface, the template is cut
-            at the same height, and keypoints are restricted to the height band a target can occupy. It
-            replaces the smooth-surface filter's job on the ground, which SfM noise defeats
-            (docs/recognition.md). Applied only when every template says it stands on the ground.
-        k_ground_cell: ground grid cell / resolution (1.5 m cells: several SfM points per cell).
-        k_ground_window: half-size of the ground percentile window / resolution (4.5 m: wider than half a
-            T-72, so the ground around a vehicle wins over its roof).
-        ground_percentile: percentile of the window's lowest-point cells taken as ground.
-        k_ground_cut: scene vertices less than this / resolution above the ground are ground; template
-            vertices lower than it above the model's base are dropped alike.
-        k_keypoint_min_height: keypoints lie at least this / resolution above the ground (and at most the
-            tallest template's height above it).
-        hough_yaw_bin_deg: heading bin of the upright Hough grouping (``steps.group_upright_hough``), used
-            for ground vehicles instead of pairwise consistency; 10 deg moves a point 3.5 m from the
-            centre by 0.6 m, about one accumulator cell.
-        k_hough_cell: position cell of the Hough accumulator / resolution.
-        k_terrain_window: half-size of the window around a hypothesis in which the terrain under it is
-            estimated / resolution (18 m: wider than most roofs, so the streets and yards around a
-            building set it).
-        k_terrain_step: a ground vehicle's base may lie at most this / resolution above that terrain
-            (1.5 m). A hypothesis higher up stands on a roof or a wall top: impossible for a ground
-            vehicle. One-storey roofs are >= 3 m up. On a slope the window's 20th percentile lies
-            downhill of the centre, by ~0.6 x the half-window x the gradient, so slopes up to ~14 %
-            pass (docs/recognition.md, "Roofs").
-        k_height_tol: a correspondence is kept only if the scene vertex's height above the ground and the
-            model vertex's height differ by less than this / resolution (SfM depth noise ~ 0.1-0.3 m).
-        view_yaw_margin_deg: with per-view templates and a known camera position, a view votes only for
-            headings that put the camera within half the view spacing plus this margin of its azimuth.
-        template_samples_per_m2: dense surface sampling of the CAD mesh before HPR (§II-A), points per m^2.
-        template_elevations_deg: elevations of the HPR viewpoint rings (§II-A); each ring has a view per
-            azimuth, and the matcher uses for each scene vertex the ring nearest the camera's elevation seen
-            from it (the camera position is known). 30 deg is
-            the paper's medium obliquity, from which its 2D templates were taken (§III-D).
-        template_azimuths_deg: azimuths of the HPR viewpoints; each (azimuth, elevation) is a separate view of the
-            template, matched, grouped and verified on its own (12 views every 30 deg: measured in
-            docs/recognition.md, one view only recognises within about +-30 deg of it). One view is the
-            paper's choice (§II-A), several cover the orbit's 360 deg (docs/recognition.md).
-        template_distance_m: distance of the HPR viewpoints from the model centre (scenario 1 range, Table II).
-        hpr_radius_factor: Open3D HPR spherical-flip radius as a multiple of the viewpoint distance
-            (Katz et al. 2007; Open3D's example uses 100 x the diameter).
 
     """
 
-    resolution_m: float = 0.3
-    normal_k: int = 15
-    knndr_k: int = 10
-    ransac_iterations: int = 1000
-    descriptor: str = "shot"
-    k_support_radius: float = 10.0
+    max_scene_points: int = 5_000_000
+    max_scene_keypoints: int = 20_000
     smooth_angle_rad: float = math.radians(10.0)
+    knndr_k: int = 10
     knndr_ratio: float = 1.0
     max_correspondences: int = 20000
     knn_across_views: bool = False
     k_consensus: float = 2.0
     min_group_size: int = 5
     max_groups: int = 20
+    hough_yaw_bin_deg: float = 10.0
+    k_hough_cell: float = 3.0
+    view_yaw_margin_deg: float = 15.0
+    ransac_iterations: int = 1000
     k_ransac_inlier: float = 1.0
-    k_icp_gate: float = 2.0
     k_same_hypothesis: float = 0.5
     same_hypothesis_deg: float = 2.0
+    k_icp_gate: float = 2.0
     icp_iterations: int = 30
     k_icp_reach: float = 10.0
     k_overlap: float = 1.0
@@ -152,126 +187,244 @@ class RecognitionConfig:
     k_clutter_sigma: float = 2.0
     k_ground_slab: float = 2.0
     k_nms: float = 10.0
-    max_scene_points: int = 5_000_000
-    max_scene_keypoints: int = 20_000
-    ground_vehicles: bool = True
-    k_ground_cell: float = 5.0
-    k_ground_window: float = 15.0
-    ground_percentile: float = 20.0
-    k_ground_cut: float = 1.0
-    k_keypoint_min_height: float = 1.5
-    hough_yaw_bin_deg: float = 10.0
-    k_hough_cell: float = 3.0
-    k_terrain_window: float = 60.0
-    k_terrain_step: float = 5.0
-    k_height_tol: float = 1.5
-    view_yaw_margin_deg: float = 15.0
-    template_samples_per_m2: float = 400.0
-    template_elevations_deg: tuple[float, ...] = (10.0, 35.0)
-    template_azimuths_deg: tuple[float, ...] = tuple(30.0 * i for i in range(12))
-    template_distance_m: float = 50.0
-    hpr_radius_factor: float = 100.0
 
     def __post_init__(self) -> None:
         """Validate every field; raise ConfigError naming the bad value."""
-        if self.descriptor not in DESCRIPTORS:
-            raise ConfigError(f"descriptor {self.descriptor!r} must be one of {DESCRIPTORS}")
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name in ("descriptor", "template_azimuths_deg", "template_elevations_deg"):
-                continue
-            if f.name in ("ground_vehicles", "knn_across_views"):
-                if not isinstance(value, bool):
-                    raise ConfigError(f"{f.name} = {value!r} must be true or false")
-                continue
-            if not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
-                raise ConfigError(f"{f.name} = {value!r} must be a finite number > 0")
-        if self.normal_k < 3:
-            raise ConfigError(f"normal_k = {self.normal_k} must be >= 3 (a plane needs 3 points)")
-        if self.knndr_k < 2:
-            raise ConfigError(
-                f"knndr_k = {self.knndr_k} must be >= 2 (a ratio needs two distances)"
-            )
-        if not 0 < self.knndr_ratio <= 1:
-            raise ConfigError(f"knndr_ratio = {self.knndr_ratio} must be in (0, 1]")
-        if not 0 < self.max_clutter <= 1:
-            raise ConfigError(f"max_clutter = {self.max_clutter} must be in (0, 1]")
-        if not 0 < self.min_overlap <= 1:
-            raise ConfigError(f"min_overlap = {self.min_overlap} must be in (0, 1]")
-        if self.min_group_size < 3:
-            raise ConfigError(
-                f"min_group_size = {self.min_group_size} must be >= 3 (a pose needs 3)"
-            )
-        if not 0 <= self.ground_percentile <= 100:
-            raise ConfigError(f"ground_percentile = {self.ground_percentile} must be in [0, 100]")
-        if not self.template_azimuths_deg:
-            raise ConfigError(
-                "template_azimuths_deg is empty; at least one HPR viewpoint is needed"
-            )
-        if not self.template_elevations_deg or not all(
-            -90.0 < e <= 90.0 for e in self.template_elevations_deg
+        _check_fields(self)
+
+
+@dataclass(frozen=True)
+class GroundConfig:
+    """The ground-vehicle prior of the matcher (docs/recognition.md, "Ground", "Roofs"): the scene's ground,
+    the height band of keypoints, and where a vehicle may stand. Used when ``ground_vehicles`` is set
+    and every template stands on the ground; distances are multiples of ``resolution_m``.
+
+    Attributes:
+        k_ground_cell: ground grid cell / resolution (1.5 m cells: several SfM points per cell).
+        k_ground_window: half-size of the ground percentile window / resolution (4.5 m: wider than half a
+            T-72, so the ground around a vehicle wins over its roof).
+        ground_percentile: percentile of the window's lowest-point cells taken as ground.
+        k_keypoint_min_height: keypoints lie at least this / resolution above the ground (and at most the
+            tallest template's height above it).
+        k_height_tol: a correspondence is kept only if the scene vertex's height above the ground and the
+            model vertex's height differ by less than this / resolution (SfM depth noise ~ 0.1-0.3 m).
+        k_terrain_window: half-size of the window around a hypothesis in which the terrain under it is
+            estimated / resolution (18 m: wider than most roofs, so the streets and yards around a
+            building set it).
+        k_terrain_step: a ground vehicle's base may lie at most this / resolution above that terrain
+            (1.5 m). A hypothesis higher up stands on a roof or a wall top: impossible for a ground
+            vehicle. One-storey roofs are >= 3 m up. On a slope the window's 20th percentile lies
+            downhill of the centre, by ~0.6 x the half-window x the gradient, so slopes up to ~14 %
+            pass (docs/recognition.md, "Roofs").
+
+    """
+
+    k_ground_cell: float = 5.0
+    k_ground_window: float = 15.0
+    ground_percentile: float = 20.0
+    k_keypoint_min_height: float = 1.5
+    k_height_tol: float = 1.5
+    k_terrain_window: float = 60.0
+    k_terrain_step: float = 5.0
+
+    def __post_init__(self) -> None:
+        """Validate every field; raise ConfigError naming the bad value."""
+        _check_fields(self)
+
+
+_FLAGS = ("ground_vehicles", "knn_across_views")
+_UNCHECKED = ("descriptor", "template_azimuths_deg", "template_elevations_deg")
+_RANGES: dict[str, tuple[float, float, str]] = {
+    "knndr_ratio": (0.0, 1.0, "(0, 1]"),
+    "max_clutter": (0.0, 1.0, "(0, 1]"),
+    "min_overlap": (0.0, 1.0, "(0, 1]"),
+}
+_MINIMUMS: dict[str, tuple[int, str]] = {
+    "normal_k": (3, "a plane needs 3 points"),
+    "knndr_k": (2, "a ratio needs two distances"),
+    "min_group_size": (3, "a pose needs 3"),
+}
+
+
+def _check_fields(part: Any) -> None:
+    """Every field of a part: flags are booleans, numbers finite and > 0, plus the rules of each field."""
+    for f in fields(part):
+        value = getattr(part, f.name)
+        if f.name in _UNCHECKED:
+            continue
+        if f.name in _FLAGS:
+            if not isinstance(value, bool):
+                raise ConfigError(f"{f.name} = {value!r} must be true or false")
+            continue
+        if not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
+            raise ConfigError(f"{f.name} = {value!r} must be a finite number > 0")
+        if f.name in _RANGES and not _RANGES[f.name][0] < value <= _RANGES[f.name][1]:
+            raise ConfigError(f"{f.name} = {value} must be in {_RANGES[f.name][2]}")
+        if f.name in _MINIMUMS and value < _MINIMUMS[f.name][0]:
+            least, why = _MINIMUMS[f.name]
+            raise ConfigError(f"{f.name} = {value} must be >= {least} ({why})")
+    if isinstance(part, TemplateConfig):
+        _check_template(part)
+    if isinstance(part, GroundConfig) and not 0 <= part.ground_percentile <= 100:
+        raise ConfigError(f"ground_percentile = {part.ground_percentile} must be in [0, 100]")
+
+
+def _check_template(part: TemplateConfig) -> None:
+    if part.descriptor not in DESCRIPTORS:
+        raise ConfigError(f"descriptor {part.descriptor!r} must be one of {DESCRIPTORS}")
+    if not part.template_azimuths_deg:
+        raise ConfigError("template_azimuths_deg is empty; at least one HPR viewpoint is needed")
+    if not part.template_elevations_deg or not all(
+        -90.0 < e <= 90.0 for e in part.template_elevations_deg
+    ):
+        raise ConfigError(
+            f"template_elevations_deg = {part.template_elevations_deg} must be non-empty, "
+            "each in (-90, 90]"
+        )
+
+
+_PART_OF: dict[str, str] = {
+    f.name: part
+    for part, cls in (
+        ("template", TemplateConfig),
+        ("matcher", MatcherConfig),
+        ("ground", GroundConfig),
+    )
+    for f in fields(cls)
+}
+"""The part that owns each field, by the field's name (names are unique across the parts)."""
+
+
+@dataclass(frozen=True, init=False)
+class RecognitionConfig:
+    """Configuration of template building and of the online matcher: the group users set.
+
+    It holds the three parts and forwards each field's name to the part that owns it, both ways:
+    ``RecognitionConfig(knndr_k=5)``, ``dataclasses.replace(config, knndr_k=5)`` and ``config.knndr_k``
+    work as on one flat group, and ``--set recognition.knndr_k=5`` reaches ``matcher.knndr_k``
+    (``field_path``). The defaults are the paper's values where it gives one; each field's docstring
+    says where the others come from.
+
+    Attributes:
+        template: what shapes a template (and the scene's description); keys the template cache.
+        matcher: the online matcher's settings.
+        ground: the ground-vehicle prior.
+
+    """
+
+    template: TemplateConfig
+    matcher: MatcherConfig
+    ground: GroundConfig
+
+    def __init__(
+        self,
+        template: TemplateConfig | None = None,
+        matcher: MatcherConfig | None = None,
+        ground: GroundConfig | None = None,
+        **fields_by_name: Any,
+    ) -> None:
+        """The parts (defaults where None), then any field of a part given by its name.
+
+        Raises:
+            ConfigError: an unknown field name, a part of the wrong type, or a value a part refuses.
+
+        """
+        parts: dict[str, Any] = {
+            "template": TemplateConfig() if template is None else template,
+            "matcher": MatcherConfig() if matcher is None else matcher,
+            "ground": GroundConfig() if ground is None else ground,
+        }
+        for name, cls in (
+            ("template", TemplateConfig),
+            ("matcher", MatcherConfig),
+            ("ground", GroundConfig),
         ):
-            raise ConfigError(
-                f"template_elevations_deg = {self.template_elevations_deg} must be non-empty, each in (-90, 90]"
-            )
+            if not isinstance(parts[name], cls):
+                raise ConfigError(f"recognition.{name} = {parts[name]!r} must be a {cls.__name__}")
+        changes: dict[str, dict[str, Any]] = {}
+        for name, value in fields_by_name.items():
+            if name not in _PART_OF:
+                raise ConfigError(
+                    f"recognition has no field {name!r}; expected one of {sorted(_PART_OF)}"
+                )
+            changes.setdefault(_PART_OF[name], {})[name] = value
+        for part, values in changes.items():
+            parts[part] = dataclasses.replace(parts[part], **values)
+        for part, value in parts.items():
+            object.__setattr__(self, part, value)
+
+    def __getattr__(self, name: str) -> Any:
+        """A part's field by its name alone (``config.knndr_k`` is ``config.matcher.knndr_k``)."""
+        part = _PART_OF.get(name)
+        if part is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        return getattr(object.__getattribute__(self, part), name)
+
+    @staticmethod
+    def field_path(name: str) -> list[str]:
+        """Where a field's name lives: ``["matcher", "knndr_k"]`` for "knndr_k"; [name] for a part."""
+        return [_PART_OF[name], name] if name in _PART_OF else [name]
 
     # Derived thresholds, metres.
     @property
     def support_radius_m(self) -> float:
         """Descriptor support radius, metres."""
-        return self.k_support_radius * self.resolution_m
-
-    @property
-    def consensus_m(self) -> float:
-        """Geometric-consistency tolerance, metres."""
-        return self.k_consensus * self.resolution_m
-
-    @property
-    def ransac_inlier_m(self) -> float:
-        """RANSAC inlier distance, metres."""
-        return self.k_ransac_inlier * self.resolution_m
-
-    @property
-    def same_hypothesis_m(self) -> float:
-        """Translation under which two hypotheses of one view are verified once, metres."""
-        return self.k_same_hypothesis * self.resolution_m
-
-    @property
-    def icp_gate_m(self) -> float:
-        """ICP maximum correspondence distance, metres."""
-        return self.k_icp_gate * self.resolution_m
-
-    @property
-    def icp_reach_m(self) -> float:
-        """How far ICP may move a hypothesis on its cropped neighbourhood, metres."""
-        return self.k_icp_reach * self.resolution_m
-
-    @property
-    def overlap_m(self) -> float:
-        """Model-scene overlap distance, metres."""
-        return self.k_overlap * self.resolution_m
-
-    @property
-    def ground_slab_m(self) -> float:
-        """Height of the ground slab ignored by the clutter measure, metres."""
-        return self.k_ground_slab * self.resolution_m
+        return self.template.support_radius_m
 
     @property
     def ground_cut_m(self) -> float:
         """Height below which scene and template vertices count as ground, metres."""
-        return self.k_ground_cut * self.resolution_m
+        return self.template.ground_cut_m
+
+    def _m(self, k: float) -> float:
+        return k * self.template.resolution_m
+
+    @property
+    def consensus_m(self) -> float:
+        """Geometric-consistency tolerance, metres."""
+        return self._m(self.matcher.k_consensus)
+
+    @property
+    def ransac_inlier_m(self) -> float:
+        """RANSAC inlier distance, metres."""
+        return self._m(self.matcher.k_ransac_inlier)
+
+    @property
+    def same_hypothesis_m(self) -> float:
+        """Translation under which two hypotheses of one view are verified once, metres."""
+        return self._m(self.matcher.k_same_hypothesis)
+
+    @property
+    def icp_gate_m(self) -> float:
+        """ICP maximum correspondence distance, metres."""
+        return self._m(self.matcher.k_icp_gate)
+
+    @property
+    def icp_reach_m(self) -> float:
+        """How far ICP may move a hypothesis on its cropped neighbourhood, metres."""
+        return self._m(self.matcher.k_icp_reach)
+
+    @property
+    def overlap_m(self) -> float:
+        """Model-scene overlap distance, metres."""
+        return self._m(self.matcher.k_overlap)
+
+    @property
+    def ground_slab_m(self) -> float:
+        """Height of the ground slab ignored by the clutter measure, metres."""
+        return self._m(self.matcher.k_ground_slab)
 
     @property
     def terrain_window_m(self) -> float:
         """Half-size of the terrain window around a hypothesis, metres."""
-        return self.k_terrain_window * self.resolution_m
+        return self._m(self.ground.k_terrain_window)
 
     @property
     def terrain_step_m(self) -> float:
         """Highest a ground vehicle's base may stand above the terrain around it, metres."""
-        return self.k_terrain_step * self.resolution_m
+        return self._m(self.ground.k_terrain_step)
 
     @property
     def nms_m(self) -> float:
         """Distance under which two hypotheses are one location, metres."""
-        return self.k_nms * self.resolution_m
+        return self._m(self.matcher.k_nms)

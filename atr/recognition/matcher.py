@@ -1,7 +1,7 @@
 """Online phase of the 3D ATR module (paper §II-B-2): recognise templates in a scene point cloud.
 
-``recognize`` reads as the paper's list of steps; each step is a public function in
-``atr.recognition.steps``. Several templates (the T-72 and its confusers) are matched against one scene
+``recognize`` reads as the paper's list of steps and ours; each step is a named function in
+``atr.recognition.steps`` (the paper's) or ``atr.recognition.scene`` (ours: ground, views, headings). Several templates (the T-72 and its confusers) are matched against one scene
 description, and where hypotheses of different targets overlap only the best-scoring one is reported, so the
 output says *which* target is there, not only that something is.
 """
@@ -9,29 +9,42 @@ output says *which* target is there, not only that something is.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from atr.errors import ConfigError, InputError
 from atr.recognition import _backend
-from atr.recognition.config import RecognitionConfig
+from atr.recognition.config import MatcherConfig, RecognitionConfig
+from atr.recognition.scene import (
+    EmptyScene,
+    GroundCheck,
+    Scene,
+    TemplateViews,
+    check_resolutions,
+    estimate_normals,
+    heading_window,
+    remove_ground,
+    select_keypoints,
+    subsampled_scene,
+    template_views,
+    validated_cloud,
+)
 from atr.recognition.steps import (
     Correspondences,
+    HoughSettings,
+    Hypothesis,
+    PointSet,
+    Verification,
+    VerifySettings,
     descriptor_sq_distances,
     drop_repeated_hypotheses,
-    filter_smooth_surfaces,
     group_geometrically_consistent,
     group_upright_hough,
-    height_above_ground,
     knndr_from_distances,
-    lowest_per_cell,
     ransac_per_group,
-    terrain_height_at,
-    uniform_subsample,
     verify_with_icp,
 )
 from atr.recognition.template import Template, model_extent_m
@@ -104,28 +117,18 @@ class _Clock:
         self.ms = dict.fromkeys(STAGES, 0.0)
         self._t0 = time.perf_counter()
 
-    def add(self, stage: str, t_start: float) -> float:
-        now = time.perf_counter()
-        self.ms[stage] += (now - t_start) * 1e3
-        return now
+    @contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        t_start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.ms[name] += (time.perf_counter() - t_start) * 1e3
 
     def result(self) -> dict[str, float]:
         out = dict(self.ms)
         out["total"] = (time.perf_counter() - self._t0) * 1e3
         return out
-
-
-def _validate_scene(scene_points_m: np.ndarray, config: RecognitionConfig) -> np.ndarray:
-    pts = np.asarray(scene_points_m)
-    if pts.ndim != 2 or pts.shape[1] != 3:
-        raise InputError(f"scene points must be an (N, 3) array; got shape {pts.shape}")
-    if not np.issubdtype(pts.dtype, np.number):
-        raise InputError(f"scene points must be numeric; got dtype {pts.dtype}")
-    if len(pts) > config.max_scene_points:
-        raise InputError(
-            f"scene has {len(pts)} points; at most max_scene_points = {config.max_scene_points}"
-        )
-    return pts.astype(np.float64, copy=False)
 
 
 def recognize(
@@ -139,9 +142,10 @@ def recognize(
 ) -> RecognitionResult:
     """Recognise the templates' targets in a scene cloud (§II-B-2).
 
-    Steps: uniform subsampling -> normals (plane fit on ``normal_k`` neighbours) -> smooth-surface filter ->
-    description with each template's descriptor -> kNNDR matching -> geometric-consistency grouping ->
-    RANSAC per group -> ICP verification and overlap test -> non-maximum suppression across targets.
+    Steps: uniform subsampling -> (ground vehicles: ground removal) -> normals (plane fit on
+    ``normal_k`` neighbours) -> smooth-surface filter -> per template: description with its descriptor ->
+    kNNDR matching per view -> grouping -> RANSAC per group -> ICP verification and acceptance ->
+    non-maximum suppression across targets.
 
     Args:
         scene_points_m: (N, 3) world-frame scene points, metres. Non-finite rows are dropped (counted in
@@ -165,234 +169,165 @@ def recognize(
     """
     clock = _Clock()
     stats: dict[str, Any] = {}
-    pts = _validate_scene(scene_points_m, config)
-    sigma = None
-    if scene_sigma_m is not None:
-        sigma = np.asarray(scene_sigma_m, np.float64)
-        if sigma.shape != (len(pts),):
-            raise InputError(
-                f"scene_sigma_m must have shape ({len(pts)},) like the scene; got {sigma.shape}"
-            )
-    for tpl in templates:
-        res = tpl.params.get("resolution_m", config.resolution_m)
-        if abs(float(res) - config.resolution_m) > 1e-9 * max(1.0, config.resolution_m):
-            raise ConfigError(
-                f"template {tpl.target}/{tpl.descriptor} was built at resolution {res} m; "
-                f"the matcher runs at {config.resolution_m} m"
-            )
+    pts, sigma = validated_cloud(scene_points_m, scene_sigma_m, config)
+    check_resolutions(templates, config)
     rng = np.random.default_rng(seed)
-
-    def empty(reason: str) -> RecognitionResult:
-        stats["reason"] = reason
+    try:
+        with clock.stage("subsample"):
+            scene = subsampled_scene(pts, sigma, viewpoint_m, config, stats)
+        if not templates:
+            raise EmptyScene("no templates given")
+        with clock.stage("ground"):
+            scene = remove_ground(scene, templates, config, stats)
+        with clock.stage("normals"):
+            estimate_normals(scene, config)
+        with clock.stage("filter"):
+            select_keypoints(scene, config, rng, stats)
+    except EmptyScene as reason:
+        stats["reason"] = str(reason)
         return RecognitionResult([], clock.result(), stats)
+    search = _Search(scene, config, rng, clock)
+    stats["templates"] = [search.find(tpl) for tpl in templates]
+    stats["verified"] = search.verified
+    detections = suppress_non_maxima(search.candidates, config.nms_m)
+    stats["detections"] = len(detections)
+    return RecognitionResult(detections, clock.result(), stats)
 
-    t = time.perf_counter()
-    finite = np.isfinite(pts).all(axis=1)
-    if sigma is not None:
-        finite &= np.isfinite(sigma)
-    stats["scene_points"] = int(len(pts))
-    stats["dropped_nonfinite"] = int(len(pts) - finite.sum())
-    pts = pts[finite]
-    if len(pts) == 0:
-        return empty("scene has no finite points")
-    chosen = uniform_subsample(pts, config.resolution_m)
-    surface = pts[chosen]
-    if sigma is not None:
-        sigma = sigma[finite][chosen]
-    stats["subsampled_points"] = int(len(surface))
-    t = clock.add("subsample", t)
-    if len(surface) < config.normal_k + 1:
-        return empty(
-            f"scene has {len(surface)} vertices after {config.resolution_m} m subsampling; "
-            f"at least {config.normal_k + 1} are needed"
-        )
-    if not templates:
-        return empty("no templates given")
 
-    band = None
-    terrain = None
-    if config.ground_vehicles and all(tpl.params.get("on_ground") for tpl in templates):
-        # Ground vehicles: drop the ground from the description surface, keep keypoints in the band
-        # of heights a target occupies (docs/recognition.md, "Ground").
-        height = height_above_ground(
-            surface,
-            config.k_ground_cell * config.resolution_m,
-            config.k_ground_window * config.resolution_m,
-            config.ground_percentile,
-        )
-        terrain = lowest_per_cell(surface, config.k_ground_cell * config.resolution_m)
-        top = max(float(np.asarray(tpl.points_m)[:, 2].max()) for tpl in templates)
-        above = height >= config.ground_cut_m
-        surface, height = surface[above], height[above]
-        if sigma is not None:
-            sigma = sigma[above]
-        band = (height >= config.k_keypoint_min_height * config.resolution_m) & (
-            height <= top + config.ground_cut_m
-        )
-        stats["above_ground_points"] = int(len(surface))
-        if len(surface) < config.normal_k + 1:
-            return empty(f"only {len(surface)} scene vertices stand above the ground")
-    t = clock.add("ground", t)
+class _Search:
+    """The per-template steps on one described scene; collects candidates and the verified log."""
 
-    normals = _backend.estimate_normals(surface, config.normal_k, viewpoint_m)
-    t = clock.add("normals", t)
-    keep = filter_smooth_surfaces(surface, normals, config.normal_k, config.smooth_angle_rad)
-    if band is not None:
-        keep &= band
-    kp_idx = np.flatnonzero(keep)
-    if len(kp_idx) > config.max_scene_keypoints:
-        kp_idx = np.sort(rng.choice(kp_idx, size=config.max_scene_keypoints, replace=False))
-    stats["keypoints"] = int(len(kp_idx))
-    t = clock.add("filter", t)
-    if len(kp_idx) < config.min_group_size:
-        return empty(f"only {len(kp_idx)} scene vertices survive the smooth-surface filter")
-    keypoints = surface[kp_idx]
-    kp_height = None if band is None else height[kp_idx]
-    ground_xy = None if band is None else cKDTree(surface[:, :2])
-    ground_z = None if band is None else surface[:, 2] - height
+    def __init__(
+        self, scene: Scene, config: RecognitionConfig, rng: np.random.Generator, clock: _Clock
+    ) -> None:
+        self.scene, self.config, self.rng, self.clock = scene, config, rng, clock
+        self.ground = GroundCheck(scene, config)
+        self.described: dict[tuple[str, float], np.ndarray] = {}
+        self.candidates: list[tuple[Detection, np.ndarray, float]] = []
+        self.verified: list[tuple] = []
 
-    scene_tree = cKDTree(surface)
-    scene_desc: dict[tuple[str, float], np.ndarray] = {}
-    candidates: list[tuple[Detection, np.ndarray, float]] = []
-    per_target: list[dict[str, Any]] = []
-    hyp_log: list[tuple] = []
-    for tpl in templates:
-        key = (tpl.descriptor, float(tpl.radius_m))
-        t = time.perf_counter()
-        if key not in scene_desc:
-            scene_desc[key] = _backend.describe(
-                tpl.descriptor, surface, normals, kp_idx, tpl.radius_m
+    def find(self, tpl: Template) -> dict[str, Any]:
+        """Describe, match, group, hypothesise and verify one template; its counts per stage."""
+        with self.clock.stage("describe"):
+            scene_desc = self._describe(tpl)
+        with self.clock.stage("match"):
+            views = template_views(tpl, self.scene)
+            matches = _match_views(
+                scene_desc,
+                tpl.descriptors,
+                views.slices,
+                views.elevations_deg,
+                views.ring_of_keypoint,
+                self.config,
             )
-        t = clock.add("describe", t)
-        views = tpl.view_slices()
-        view_az = tpl.params.get("view_azimuths_deg")
-        view_el = tpl.params.get("view_elevations_deg")
-        if not (
-            viewpoint_m is not None
-            and band is not None
-            and view_az is not None
-            and view_el is not None
-            and len(view_az) == len(views) == len(view_el)
-        ):
-            view_az = None
-            view_el = [0.0] * len(views)
-            ring_of_vertex = np.zeros(len(keypoints))
-        else:
-            # each scene vertex is matched with the views of the ring nearest the camera's elevation
-            # seen from it (the camera position is known)
-            rings = np.unique(np.asarray(view_el, np.float64))
-            rel = np.asarray(viewpoint_m, np.float64) - keypoints
-            cam_el = np.degrees(np.arctan2(rel[:, 2], np.linalg.norm(rel[:, :2], axis=1)))
-            ring_of_vertex = rings[np.argmin(np.abs(cam_el[:, None] - rings[None, :]), axis=1)]
-        matches = _match_views(
-            scene_desc[key], tpl.descriptors, views, view_el, ring_of_vertex, config
+        model_kp = np.asarray(tpl.keypoints_m, np.float64)
+        with self.clock.stage("group"):
+            groups = [
+                self._group(views, vi, model_kp[ksl], corr)
+                for vi, ((_, ksl), corr) in enumerate(zip(views.slices, matches, strict=True))
+            ]
+        with self.clock.stage("ransac"):
+            hyps, n_ransac = self._hypotheses(views, model_kp, matches, groups)
+        with self.clock.stage("icp"):
+            accepted = self._verify(tpl, views, hyps)
+        return {
+            "target": tpl.target,
+            "descriptor": tpl.descriptor,
+            "views": len(views.slices),
+            "correspondences": int(sum(len(c) for c in matches)),
+            "groups": int(sum(len(g) for g in groups)),
+            "hypotheses": n_ransac,
+            "distinct_hypotheses": len(hyps),
+            "accepted": accepted,
+        }
+
+    def _describe(self, tpl: Template) -> np.ndarray:
+        key = (tpl.descriptor, float(tpl.radius_m))
+        if key not in self.described:
+            s = self.scene
+            self.described[key] = _backend.describe(
+                tpl.descriptor, s.surface.points_m, s.normals, s.kp_idx, tpl.radius_m
+            )
+        return self.described[key]
+
+    def _group(
+        self, views: TemplateViews, vi: int, model_kp: np.ndarray, corr: Correspondences
+    ) -> list[np.ndarray]:
+        c, m, s = self.config, self.config.matcher, self.scene
+        if not s.upright:
+            return group_geometrically_consistent(
+                s.keypoints, model_kp, corr, c.consensus_m, m.min_group_size, m.max_groups
+            )
+        res_m = c.template.resolution_m
+        settings = HoughSettings(
+            cell_m=m.k_hough_cell * res_m,
+            yaw_bin_rad=np.radians(m.hough_yaw_bin_deg),
+            height_tol_m=c.ground.k_height_tol * res_m,
+            min_size=m.min_group_size,
+            max_groups=m.max_groups,
         )
-        t = clock.add("match", t)
-        model_kp_all = np.asarray(tpl.keypoints_m, np.float64)
-        view_groups = []
-        for vi, ((_, ksl), corr) in enumerate(zip(views, matches, strict=True)):
-            if band is None:
-                groups = group_geometrically_consistent(
-                    keypoints,
-                    model_kp_all[ksl],
-                    corr,
-                    config.consensus_m,
-                    config.min_group_size,
-                    config.max_groups,
-                )
-            else:
-                yaw_centre = None
-                half = float(np.pi)
-                if view_az is not None:
-                    # the camera sees the target from the view's azimuth: heading = direction to the
-                    # camera minus that azimuth (within half the view spacing and a margin)
-                    to_cam = np.asarray(viewpoint_m, np.float64)[:2] - keypoints[corr.scene, :2]
-                    yaw_centre = np.arctan2(to_cam[:, 1], to_cam[:, 0]) - np.radians(view_az[vi])
-                    half = np.pi / len(set(view_az)) + np.radians(config.view_yaw_margin_deg)
-                groups = group_upright_hough(
-                    keypoints,
-                    kp_height,
-                    model_kp_all[ksl],
-                    corr,
-                    cell_m=config.k_hough_cell * config.resolution_m,
-                    yaw_bin_rad=np.radians(config.hough_yaw_bin_deg),
-                    height_tol_m=config.k_height_tol * config.resolution_m,
-                    min_size=config.min_group_size,
-                    max_groups=config.max_groups,
-                    yaw_centre_rad=yaw_centre,
-                    yaw_half_width_rad=half,
-                )
-            view_groups.append(groups)
-        t = clock.add("group", t)
-        # the largest groups over all views go to RANSAC (stable: view order breaks ties)
+        window = heading_window(s, views, vi, corr, m.view_yaw_margin_deg)
+        return group_upright_hough(
+            s.keypoints, s.height[s.kp_idx], model_kp, corr, settings, window
+        )
+
+    def _hypotheses(
+        self,
+        views: TemplateViews,
+        model_kp: np.ndarray,
+        matches: list[Correspondences],
+        groups: list[list[np.ndarray]],
+    ) -> tuple[list[tuple[int, Hypothesis]], int]:
+        """RANSAC on the largest groups over all views (stable: view order breaks ties), then one
+        of each set of repeated hypotheses; also the count before repeats were dropped.
+        """
+        c, m = self.config, self.config.matcher
         ranked = sorted(
-            ((vi, g) for vi, groups in enumerate(view_groups) for g in groups),
+            ((vi, g) for vi, view_groups in enumerate(groups) for g in view_groups),
             key=lambda vg: -len(vg[1]),
-        )[: config.max_groups]
-        hyps: list[tuple[int, Any]] = []
+        )[: m.max_groups]
+        hyps: list[tuple[int, Hypothesis]] = []
         for vi, g in ranked:
             h = ransac_per_group(
-                keypoints,
-                model_kp_all[views[vi][1]],
+                self.scene.keypoints,
+                model_kp[views.slices[vi][1]],
                 matches[vi],
                 g,
-                config.ransac_iterations,
-                config.ransac_inlier_m,
-                rng,
-                upright=band is not None,
+                m.ransac_iterations,
+                c.ransac_inlier_m,
+                self.rng,
+                upright=self.scene.upright,
             )
-            if h is not None and h.inliers >= config.min_group_size:
+            if h is not None and h.inliers >= m.min_group_size:
                 hyps.append((vi, h))
-        n_ransac = len(hyps)
-        hyps = drop_repeated_hypotheses(
-            hyps, config.same_hypothesis_m, np.radians(config.same_hypothesis_deg)
+        distinct = drop_repeated_hypotheses(
+            hyps, c.same_hypothesis_m, np.radians(m.same_hypothesis_deg)
         )
-        t = clock.add("ransac", t)
+        return distinct, len(hyps)
+
+    def _verify(
+        self, tpl: Template, views: TemplateViews, hyps: list[tuple[int, Hypothesis]]
+    ) -> int:
+        """ICP verification and acceptance (§II-B-2 overlap, our clutter and ground rules)."""
+        c, m = self.config, self.config.matcher
+        settings = VerifySettings(
+            icp_gate_m=c.icp_gate_m,
+            overlap_m=c.overlap_m,
+            icp_iterations=m.icp_iterations,
+            ground_slab_m=c.ground_slab_m,
+            k_clutter_sigma=m.k_clutter_sigma,
+            icp_reach_m=c.icp_reach_m,
+        )
         model_all = np.asarray(tpl.points_m, np.float64)
         extent = model_extent_m(tpl)
-        view_cache: dict[int, tuple[np.ndarray, cKDTree]] = {}
+        view_models: dict[int, PointSet] = {}
         accepted = 0
         for vi, h in hyps:
-            if vi not in view_cache:
-                pts_v = model_all[views[vi][0]]
-                view_cache[vi] = (pts_v, cKDTree(pts_v))
-            model_pts, model_tree = view_cache[vi]
-            v = verify_with_icp(
-                model_pts,
-                surface,
-                h.T_scene_model,
-                config.icp_gate_m,
-                config.overlap_m,
-                config.icp_iterations,
-                ground_slab_m=config.ground_slab_m,
-                scene_tree=scene_tree,
-                model_tree=model_tree,
-                scene_sigma_m=sigma,
-                k_clutter_sigma=config.k_clutter_sigma,
-                icp_reach_m=config.icp_reach_m,
-            )
-            on_ground = True
-            if ground_xy is not None:
-                # a ground vehicle's origin (on the ground under it) must lie on the scene's ground
-                _, nb = ground_xy.query(v.T_scene_model[:2, 3], k=min(10, len(ground_z)))
-                z_ground = float(np.median(ground_z[np.atleast_1d(nb)]))
-                on_ground = (
-                    abs(v.T_scene_model[2, 3] - z_ground)
-                    <= config.k_height_tol * config.resolution_m
-                )
-            if on_ground and terrain is not None:
-                # ... and that ground must be the terrain, not a roof (docs/recognition.md, "Roofs")
-                z_terrain = terrain_height_at(
-                    *terrain,
-                    v.T_scene_model[:2, 3],
-                    config.terrain_window_m,
-                    config.ground_percentile,
-                )[0]
-                on_ground = bool(
-                    np.isnan(z_terrain)
-                    or v.T_scene_model[2, 3] - z_terrain <= config.terrain_step_m
-                )
-            hyp_log.append(
+            if vi not in view_models:
+                view_models[vi] = PointSet(model_all[views.slices[vi][0]])
+            v = verify_with_icp(view_models[vi], self.scene.surface, h.T_scene_model, settings)
+            on_ground = self.ground.stands(v.T_scene_model)
+            self.verified.append(
                 (
                     tpl.target,
                     vi,
@@ -402,12 +337,7 @@ def recognize(
                     *(round(float(x), 2) for x in v.T_scene_model[:3, 3]),
                 )
             )
-            if (
-                on_ground
-                and v.overlap >= config.min_overlap
-                and v.overlap_vertices >= config.min_overlap_vertices
-                and v.clutter <= config.max_clutter
-            ):
+            if on_ground and _acceptable(v, m):
                 accepted += 1
                 det = Detection(
                     target=tpl.target,
@@ -417,27 +347,18 @@ def recognize(
                     overlap=float(v.overlap),
                     inliers=int(h.inliers),
                 )
-                centre_m = model_all.mean(axis=0)
-                centre_w = v.T_scene_model[:3, :3] @ centre_m + v.T_scene_model[:3, 3]
-                candidates.append((det, centre_w, extent))
-        t = clock.add("icp", t)
-        per_target.append(
-            {
-                "target": tpl.target,
-                "descriptor": tpl.descriptor,
-                "views": len(views),
-                "correspondences": int(sum(len(c) for c in matches)),
-                "groups": int(sum(len(g) for g in view_groups)),
-                "hypotheses": n_ransac,
-                "distinct_hypotheses": len(hyps),
-                "accepted": accepted,
-            }
-        )
-    stats["templates"] = per_target
-    stats["verified"] = hyp_log
-    detections = suppress_non_maxima(candidates, config.nms_m)
-    stats["detections"] = len(detections)
-    return RecognitionResult(detections, clock.result(), stats)
+                centre_w = v.T_scene_model[:3, :3] @ model_all.mean(axis=0) + v.T_scene_model[:3, 3]
+                self.candidates.append((det, centre_w, extent))
+        return accepted
+
+
+def _acceptable(v: Verification, m: MatcherConfig) -> bool:
+    """The paper's overlap test (§II-B-2) and our clutter bound."""
+    return (
+        v.overlap >= m.min_overlap
+        and v.overlap_vertices >= m.min_overlap_vertices
+        and v.clutter <= m.max_clutter
+    )
 
 
 def _match_views(

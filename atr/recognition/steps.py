@@ -87,105 +87,6 @@ def filter_smooth_surfaces(
     return variation >= min_angle_rad
 
 
-def height_above_ground(
-    points: np.ndarray, cell_m: float, window_m: float, percentile: float
-) -> np.ndarray:
-    """Height of each point above the local ground, metres (world frame, z up).
-
-    The ground under a point is estimated on a horizontal grid of ``cell_m`` cells: each cell's lowest
-    point (the ground if the cell shows any), then the ``percentile`` of those cell values within
-    ``window_m`` around the cell. A vehicle, a tree or a roof covers only part of a window wider than the
-    vehicle, so the low percentile returns the ground around it, while isolated points below the ground
-    (reconstruction outliers) do not drag it down as a plain minimum would. Empty cells count as higher
-    than every occupied one, so in a sparsely sampled window the estimate rises towards the highest
-    occupied cells: sparse regions stand lower than they are. This keeps isolated background points out
-    of the keypoints, and also a target seen edge-on at long range; taking the percentile of the occupied
-    cells only was measured and not kept (docs/recognition.md, "Ground in sparse clouds").
-
-    Args:
-        points: (N, 3) float, metres, finite.
-        cell_m: grid cell edge, metres (> 0).
-        window_m: half-size of the percentile window, metres (>= cell_m).
-        percentile: percentile of the cell values taken as the ground, in [0, 100].
-
-    Returns:
-        (N,) float64 heights, metres (negative below the estimated ground).
-
-    """
-    from scipy import ndimage
-
-    pts = np.asarray(points, np.float64)
-    if len(pts) == 0:
-        return np.zeros(0)
-    ij, grid, _ = _lowest_per_cell(pts, cell_m)
-    w = max(1, int(round(window_m / cell_m)))
-    size = 2 * w + 1
-    ground = ndimage.percentile_filter(grid, percentile, size=size, mode="constant", cval=np.inf)
-    fallback = ndimage.minimum_filter(grid, size=size, mode="constant", cval=np.inf)
-    ground = np.where(np.isfinite(ground), ground, fallback)
-    return pts[:, 2] - ground[ij[:, 0], ij[:, 1]]
-
-
-def lowest_per_cell(points: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """The lowest point of each occupied cell of a horizontal grid: the terrain samples of a scene.
-
-    Args:
-        points: (N, 3) float, metres, finite, N >= 1.
-        cell_m: grid cell edge, metres (> 0).
-
-    Returns:
-        (M, 2) cell centres, metres, and (M,) the lowest z in each, metres.
-
-    """
-    ij, grid, origin = _lowest_per_cell(np.asarray(points, np.float64), cell_m)
-    filled = np.argwhere(np.isfinite(grid))
-    return (filled + origin + 0.5) * cell_m, grid[filled[:, 0], filled[:, 1]]
-
-
-def terrain_height_at(
-    cell_xy: np.ndarray,
-    cell_lowest_z: np.ndarray,
-    query_xy: np.ndarray,
-    window_m: float,
-    percentile: float,
-) -> np.ndarray:
-    """Height of the terrain at each query position, metres: ``height_above_ground``'s ground estimate
-    (a low percentile of the cells' lowest points) over a window wider than a building, so that the
-    streets and yards around a building set it and its roof does not.
-
-    Args:
-        cell_xy: (M, 2) cell centres from ``lowest_per_cell``, metres.
-        cell_lowest_z: (M,) their lowest z, metres.
-        query_xy: (Q, 2) positions, metres.
-        window_m: half-size of the square window around a query, metres.
-        percentile: percentile of the cell values taken as the terrain, in [0, 100].
-
-    Returns:
-        (Q,) float64 heights, metres; NaN where the window holds no cell.
-
-    """
-    query = np.atleast_2d(np.asarray(query_xy, np.float64))
-    out = np.full(len(query), np.nan)
-    for q, xy in enumerate(query):
-        inside = np.all(np.abs(cell_xy - xy) <= window_m, axis=1)
-        if inside.any():
-            out[q] = np.percentile(cell_lowest_z[inside], percentile)
-    return out
-
-
-def _lowest_per_cell(
-    points: np.ndarray, cell_m: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each point's (i, j) cell, the grid of each cell's lowest z (inf where empty), the grid's origin cell."""
-    ij = np.floor(points[:, :2] / cell_m).astype(np.int64)
-    origin = ij.min(axis=0)
-    ij -= origin
-    shape = tuple(int(x) for x in ij.max(axis=0) + 1)
-    grid = np.full(shape, np.inf)
-    np.minimum.at(grid, (ij[:, 0], ij[:, 1]), points[:, 2])
-    return ij, grid, origin
-
-
 @dataclass(frozen=True)
 class Correspondences:
     """Scene-model keypoint correspondences.
@@ -375,19 +276,48 @@ def group_geometrically_consistent(
     return groups if max_groups is None else groups[:max_groups]
 
 
+@dataclass(frozen=True)
+class HoughSettings:
+    """Settings of the upright Hough grouping (``group_upright_hough``).
+
+    Attributes:
+        cell_m: position cell of the accumulator, metres.
+        yaw_bin_rad: heading bin, radians.
+        height_tol_m: largest difference between the scene height and the model height, metres.
+        min_size: smallest group kept.
+        max_groups: keep the largest this many groups (None: all).
+
+    """
+
+    cell_m: float
+    yaw_bin_rad: float
+    height_tol_m: float
+    min_size: int
+    max_groups: int | None = None
+
+
+@dataclass(frozen=True)
+class YawWindow:
+    """The headings a correspondence may vote for: within ``half_width_rad`` of its ``centre_rad``.
+
+    Attributes:
+        centre_rad: (C,) expected heading per correspondence, radians (e.g. from the template view's
+            azimuth and the camera's direction).
+        half_width_rad: half-width of the window, radians.
+
+    """
+
+    centre_rad: np.ndarray
+    half_width_rad: float
+
+
 def group_upright_hough(
     scene_keypoints: np.ndarray,
     scene_heights: np.ndarray,
     model_keypoints: np.ndarray,
     corr: Correspondences,
-    *,
-    cell_m: float,
-    yaw_bin_rad: float,
-    height_tol_m: float,
-    min_size: int,
-    max_groups: int | None = None,
-    yaw_centre_rad: np.ndarray | None = None,
-    yaw_half_width_rad: float = float(np.pi),
+    settings: HoughSettings,
+    yaw_window: YawWindow | None = None,
 ) -> list[np.ndarray]:
     """Geometrically consistent groups for an upright target on the ground, by Hough voting.
 
@@ -404,34 +334,29 @@ def group_upright_hough(
         scene_heights: (S,) metres above the local ground (``height_above_ground``).
         model_keypoints: (M, 3) metres, template frame (origin on the ground, z up).
         corr: correspondences.
-        cell_m: position cell of the accumulator, metres.
-        yaw_bin_rad: heading bin, radians.
-        height_tol_m: largest difference between the scene height and the model height, metres.
-        min_size: smallest group kept.
-        max_groups: keep the largest this many groups.
-        yaw_centre_rad: optional (C,) expected heading per correspondence (e.g. from the template
-            view's azimuth and the camera's direction); votes only within ``yaw_half_width_rad`` of it.
-        yaw_half_width_rad: see above.
+        settings: accumulator cells, height tolerance and group sizes.
+        yaw_window: optional headings each correspondence may vote for; None: every heading.
 
     Returns:
         list of (G_i,) int64 arrays of indices into ``corr``, largest first.
 
     """
+    min_size, max_groups = settings.min_size, settings.max_groups
     if len(corr) < min_size:
         return []
     s = np.asarray(scene_keypoints, np.float64)[corr.scene]
     hs = np.asarray(scene_heights, np.float64)[corr.scene]
     m = np.asarray(model_keypoints, np.float64)[corr.model]
-    ok = np.flatnonzero(np.abs(hs - m[:, 2]) <= height_tol_m)
+    ok = np.flatnonzero(np.abs(hs - m[:, 2]) <= settings.height_tol_m)
     if len(ok) < min_size:
         return []
-    n_bins = max(1, int(round(2 * np.pi / yaw_bin_rad)))
+    n_bins = max(1, int(round(2 * np.pi / settings.yaw_bin_rad)))
     centres = (np.arange(n_bins) + 0.5) * (2 * np.pi / n_bins)
-    if yaw_centre_rad is None:
+    if yaw_window is None:
         window = np.ones((len(ok), n_bins), np.int8)
     else:
-        limit = yaw_half_width_rad + 0.5 * (2 * np.pi / n_bins)
-        yaw = np.asarray(yaw_centre_rad, np.float64)[ok]
+        limit = yaw_window.half_width_rad + 0.5 * (2 * np.pi / n_bins)
+        yaw = np.asarray(yaw_window.centre_rad, np.float64)[ok]
         window = _kernels.yaw_window(yaw, centres, limit)
         if (window < 0).any():  # too close to call arithmetically: the exact rule decides
             r, b = np.nonzero(window < 0)
@@ -443,7 +368,7 @@ def group_upright_hough(
         window,
         np.cos(centres),
         np.sin(centres),
-        float(cell_m),
+        float(settings.cell_m),
     )
     if len(ci) == 0:
         return []
@@ -632,19 +557,58 @@ class Verification:
     rmse_m: float
 
 
+@dataclass(frozen=True)
+class VerifySettings:
+    """Settings of ICP verification (``verify_with_icp``).
+
+    Attributes:
+        icp_gate_m: ICP maximum correspondence distance, metres.
+        overlap_m: overlap distance, metres.
+        icp_iterations: ICP iteration cap.
+        ground_slab_m: height above the model's lowest point ignored by the clutter measure, metres.
+        k_clutter_sigma: a scene vertex with a sigma counts as explained by the model within
+            max(``overlap_m``, this x its sigma): noise is not clutter.
+        icp_reach_m: when given, ICP runs on the scene vertices within the model's radius +
+            ``icp_gate_m`` + this distance of the placed model's centre, not on the whole scene:
+            Open3D builds a kd-tree of its target at every call, which on a LIDAR scene costs far more
+            than the ICP itself. ICP can only pair vertices within the gate of the moving model, so the
+            result is the same as on the whole scene as long as the model's centre moves less than this;
+            a hypothesis whose refined centre moved further is refined again on the whole scene.
+
+    """
+
+    icp_gate_m: float
+    overlap_m: float
+    icp_iterations: int
+    ground_slab_m: float = 0.0
+    k_clutter_sigma: float = 0.0
+    icp_reach_m: float | None = None
+
+
+@dataclass
+class PointSet:
+    """Points with their kd-tree (built on first use, then reused) and optional per-point sigma.
+
+    Attributes:
+        points_m: (N, 3) float64, metres.
+        sigma_m: optional (N,) 1-sigma position uncertainty of each point, metres (SfM gives it).
+
+    """
+
+    points_m: np.ndarray
+    sigma_m: np.ndarray | None = None
+    _tree: cKDTree | None = None
+
+    @property
+    def tree(self) -> cKDTree:
+        """kd-tree of ``points_m``."""
+        if self._tree is None:
+            self._tree = cKDTree(self.points_m)
+        return self._tree
+
+
 def verify_with_icp(
-    model_points: np.ndarray,
-    scene_points: np.ndarray,
-    T_scene_model: np.ndarray,
-    icp_gate_m: float,
-    overlap_m: float,
-    icp_iterations: int,
-    ground_slab_m: float = 0.0,
-    scene_tree: cKDTree | None = None,
-    model_tree: cKDTree | None = None,
-    scene_sigma_m: np.ndarray | None = None,
-    k_clutter_sigma: float = 0.0,
-    icp_reach_m: float | None = None,
+    model: PointSet, scene: PointSet, T_scene_model: np.ndarray, settings: VerifySettings
 ) -> Verification:
     """Apply a hypothesis to the model, refine it with ICP against the scene, measure the fit (§II-B-2).
 
@@ -656,62 +620,22 @@ def verify_with_icp(
     scene side, because the ground the target stands on is never part of the model.
 
     Args:
-        model_points: (N, 3) model vertices P_m in the target frame, metres.
-        scene_points: (S, 3) scene vertices, metres.
+        model: model vertices P_m in the target frame, metres.
+        scene: scene vertices, metres; with ``sigma_m``, a scene vertex counts as explained by the
+            model within max(``overlap_m``, ``k_clutter_sigma`` x its sigma).
         T_scene_model: (4, 4) initial hypothesis.
-        icp_gate_m: ICP maximum correspondence distance, metres.
-        overlap_m: overlap distance, metres.
-        icp_iterations: ICP iteration cap.
-        ground_slab_m: height above the model's lowest point ignored by the clutter measure, metres.
-        scene_tree: optional prebuilt kd-tree of ``scene_points`` (reused across hypotheses).
-        model_tree: optional prebuilt kd-tree of ``model_points``.
-        scene_sigma_m: optional (S,) 1-sigma position uncertainty of each scene vertex, metres (SfM
-            gives it; it grows with range). A scene vertex then counts as explained by the model within
-            max(``overlap_m``, ``k_clutter_sigma`` x its sigma): noise is not clutter.
-        k_clutter_sigma: see ``scene_sigma_m``.
-        icp_reach_m: when given, ICP runs on the scene vertices within the model's radius +
-            ``icp_gate_m`` + this distance of the placed model's centre, not on the whole scene:
-            Open3D builds a kd-tree of its target at every call, which on a LIDAR scene costs far more
-            than the ICP itself. ICP can only pair vertices within the gate of the moving model, so the
-            result is the same as on the whole scene as long as the model's centre moves less than this;
-            a hypothesis whose refined centre moved further is refined again on the whole scene.
+        settings: ICP gate, iterations and reach; overlap distance, ground slab and clutter sigma.
 
     Returns:
         The refined pose and its fit with the scene.
 
     """
-    model_points = np.asarray(model_points, np.float64)
-    scene_points = np.asarray(scene_points, np.float64)
+    model_points = np.asarray(model.points_m, np.float64)
+    scene_points = np.asarray(scene.points_m, np.float64)
     T_initial = np.asarray(T_scene_model, np.float64)
-    if scene_tree is None:
-        scene_tree = cKDTree(scene_points)
-    if model_tree is None:
-        model_tree = cKDTree(model_points)
-    src = _open3d_cloud(model_points)
-
-    def icp(target: o3d.geometry.PointCloud) -> np.ndarray:
-        result = o3d.pipelines.registration.registration_icp(
-            src,
-            target,
-            float(icp_gate_m),
-            T_initial,
-            o3d.pipelines.registration.TransformationEstimationPointToPoint(),
-            o3d.pipelines.registration.ICPConvergenceCriteria(max_iteration=int(icp_iterations)),
-        )
-        return np.asarray(result.transformation, np.float64).copy()
-
-    T = None
-    if icp_reach_m is not None:
-        model_centre = model_points.mean(axis=0)
-        model_radius = float(np.linalg.norm(model_points - model_centre, axis=1).max())
-        placed_centre = T_initial[:3, :3] @ model_centre + T_initial[:3, 3]
-        near = scene_tree.query_ball_point(placed_centre, model_radius + icp_gate_m + icp_reach_m)
-        # nothing within reach: ICP would find no pair on the whole scene either
-        T = T_initial.copy() if not near else icp(_open3d_cloud(scene_points[np.sort(near)]))
-        if np.linalg.norm(T[:3, :3] @ model_centre + T[:3, 3] - placed_centre) > icp_reach_m:
-            T = None
-    if T is None:
-        T = icp(_open3d_cloud(scene_points))
+    scene_tree, model_tree = scene.tree, model.tree
+    overlap_m = settings.overlap_m
+    T = _refine_with_icp(model_points, scene, T_initial, settings)
     R, t = T[:3, :3], T[:3, 3]
     # Scene side: scene vertices inside the model's box, in the model frame.
     lo, hi = model_points.min(0), model_points.max(0)
@@ -725,13 +649,13 @@ def verify_with_icp(
         near_idx = np.sort(near)
         local = (np.asarray(scene_points)[near_idx] - t) @ R  # R^T (p - t)
         box_lo = lo.copy()
-        box_lo[2] += ground_slab_m
+        box_lo[2] += settings.ground_slab_m
         inside = np.all((local >= box_lo) & (local <= hi), axis=1)
         inside_local = local[inside]
         explain_m = np.full(len(inside_local), overlap_m)
-        if scene_sigma_m is not None:
-            sigma = np.asarray(scene_sigma_m, np.float64)[near_idx[inside]]
-            explain_m = np.maximum(explain_m, k_clutter_sigma * sigma)
+        if scene.sigma_m is not None:
+            sigma = np.asarray(scene.sigma_m, np.float64)[near_idx[inside]]
+            explain_m = np.maximum(explain_m, settings.k_clutter_sigma * sigma)
     # A sparse scene (a far target in a two-view cloud) samples the target more coarsely than the
     # model's resolution; a model vertex then overlaps when a scene vertex lies within the scene's own
     # spacing there (median nearest-neighbour distance inside the box), never less than overlap_m.
@@ -749,6 +673,44 @@ def verify_with_icp(
         dm, _ = model_tree.query(inside_local, distance_upper_bound=float(explain_m.max()))
         clutter = float(np.mean(~(dm <= explain_m)))
     return Verification(T, n_hit / max(len(model_points), 1), n_hit, clutter, rmse)
+
+
+def _refine_with_icp(
+    model_points: np.ndarray, scene: PointSet, T_initial: np.ndarray, settings: VerifySettings
+) -> np.ndarray:
+    """ICP of the model onto the scene from ``T_initial``: on the neighbourhood within reach, or on the
+    whole scene when the pose moved further (``VerifySettings.icp_reach_m``).
+    """
+    scene_points, scene_tree = scene.points_m, scene.tree
+    icp_gate_m, icp_reach_m = settings.icp_gate_m, settings.icp_reach_m
+    src = _open3d_cloud(model_points)
+
+    def icp(target: o3d.geometry.PointCloud) -> np.ndarray:
+        result = o3d.pipelines.registration.registration_icp(
+            src,
+            target,
+            float(icp_gate_m),
+            T_initial,
+            o3d.pipelines.registration.TransformationEstimationPointToPoint(),
+            o3d.pipelines.registration.ICPConvergenceCriteria(
+                max_iteration=int(settings.icp_iterations)
+            ),
+        )
+        return np.asarray(result.transformation, np.float64).copy()
+
+    T = None
+    if icp_reach_m is not None:
+        model_centre = model_points.mean(axis=0)
+        model_radius = float(np.linalg.norm(model_points - model_centre, axis=1).max())
+        placed_centre = T_initial[:3, :3] @ model_centre + T_initial[:3, 3]
+        near = scene_tree.query_ball_point(placed_centre, model_radius + icp_gate_m + icp_reach_m)
+        # nothing within reach: ICP would find no pair on the whole scene either
+        T = T_initial.copy() if not near else icp(_open3d_cloud(scene_points[np.sort(near)]))
+        if np.linalg.norm(T[:3, :3] @ model_centre + T[:3, 3] - placed_centre) > icp_reach_m:
+            T = None
+    if T is None:
+        T = icp(_open3d_cloud(scene_points))
+    return T
 
 
 def _open3d_cloud(points_m: np.ndarray) -> o3d.geometry.PointCloud:

@@ -16,7 +16,7 @@ import open3d as o3d
 
 from atr.errors import InputError
 from atr.recognition import _backend
-from atr.recognition.config import DESCRIPTORS, RecognitionConfig
+from atr.recognition.config import DESCRIPTORS, RecognitionConfig, TemplateConfig
 from atr.recognition.steps import uniform_subsample
 
 TEMPLATE_VERSION = 2
@@ -165,7 +165,7 @@ def sample_mesh_surface(
     return pts, nrm
 
 
-def aerial_viewpoints(centre: np.ndarray, config: RecognitionConfig) -> np.ndarray:
+def aerial_viewpoints(centre: np.ndarray, config: TemplateConfig | RecognitionConfig) -> np.ndarray:
     """HPR viewpoints (V, 3), metres: ``template_distance_m`` from ``centre`` at every configured
     elevation (outer loop) and azimuth (inner loop), z up.
     """
@@ -207,7 +207,7 @@ def template_from_points(
     points: np.ndarray,
     target: str,
     descriptor: str,
-    config: RecognitionConfig,
+    config: TemplateConfig | RecognitionConfig,
     *,
     orientation_normals: np.ndarray | None = None,
     viewpoint: np.ndarray | None = None,
@@ -219,7 +219,8 @@ def template_from_points(
         points: (N, 3) model points in the target frame, metres (non-finite rows are dropped).
         target: target name.
         descriptor: descriptor name.
-        config: recognition configuration (resolution, normal_k, k_support_radius).
+        config: the template settings (resolution, normal_k, k_support_radius), or a
+            RecognitionConfig, whose template part alone is read.
         orientation_normals: optional (N, 3) normals whose sign the estimated normals adopt (e.g. the mesh
             face normals, outward); otherwise normals face ``viewpoint`` (None = up, +z).
         viewpoint: (3,) metres, see above.
@@ -270,7 +271,10 @@ def template_from_points(
 
 
 def _view_points(
-    dense: np.ndarray, face_normals: np.ndarray, viewpoint: np.ndarray, config: RecognitionConfig
+    dense: np.ndarray,
+    face_normals: np.ndarray,
+    viewpoint: np.ndarray,
+    config: TemplateConfig | RecognitionConfig,
 ) -> np.ndarray:
     """Indices of the dense samples seen from one viewpoint: HPR, then only faces that face it."""
     visible = hidden_point_removal(dense, viewpoint[None, :], config.hpr_radius_factor)
@@ -286,7 +290,7 @@ def build_template(
     mesh_triangles: np.ndarray,
     target: str,
     descriptor: str,
-    config: RecognitionConfig,
+    config: TemplateConfig | RecognitionConfig,
 ) -> Template:
     """Offline phase §II-A: CAD mesh -> simulated aerial views P_m -> subsampled, described template.
 
@@ -301,7 +305,8 @@ def build_template(
         mesh_triangles: (M, 3) vertex indices.
         target: target name.
         descriptor: descriptor name.
-        config: recognition configuration (resolution, HPR views, sampling density).
+        config: the template settings (resolution, HPR views, sampling density), or a
+            RecognitionConfig, whose template part alone is read.
 
     Returns:
         The template; ``params`` records the views used and their row counts.

@@ -57,5 +57,5 @@ def test_yaml_file_then_overrides(tmp_path):
     path.write_text("recognition:\n  descriptor: fpfh\nsfm:\n  matcher: surf\n")
     config = load_config(path, ["sfm.matcher=gftt"])
     assert config.recognition.descriptor == "fpfh" and config.sfm.matcher == "gftt"
-    assert to_dict(config)["recognition"]["descriptor"] == "fpfh"
+    assert to_dict(config)["recognition"]["template"]["descriptor"] == "fpfh"
     assert apply_overrides(config, {"sfm": {"matcher": "surf"}}).sfm.matcher == "surf"

@@ -9,9 +9,13 @@ from scipy.spatial import cKDTree
 from atr.errors import ConfigError, InputError
 from atr.recognition import (
     Correspondences,
+    HoughSettings,
     Hypothesis,
+    PointSet,
     RecognitionConfig,
     Template,
+    VerifySettings,
+    YawWindow,
     descriptor_sq_distances,
     drop_repeated_hypotheses,
     filter_smooth_surfaces,
@@ -29,6 +33,18 @@ from atr.recognition import (
     verify_with_icp,
 )
 from atr.recognition._backend import estimate_normals
+
+
+def _hough(scene, heights, model, corr, yaw_centre_rad=None, yaw_half_width_rad=np.pi, **kw):
+    """``group_upright_hough`` with its settings and heading window given as keywords."""
+    window = None if yaw_centre_rad is None else YawWindow(yaw_centre_rad, yaw_half_width_rad)
+    return group_upright_hough(scene, heights, model, corr, HoughSettings(**kw), window)
+
+
+def _verify(model, scene, T, gate_m, overlap_m, iterations, scene_sigma_m=None, **kw):
+    """``verify_with_icp`` with its settings given as arguments."""
+    settings = VerifySettings(gate_m, overlap_m, iterations, **kw)
+    return verify_with_icp(PointSet(model), PointSet(scene, scene_sigma_m), T, settings)
 
 
 def _random_pose(rng):
@@ -299,6 +315,32 @@ def test_height_above_ground_on_terrain_with_vehicle_and_outliers():
     np.testing.assert_allclose(np.median(h[len(pts) : len(pts) + len(roof)]), 2.2, atol=0.15)
 
 
+def test_ground_of_a_sparse_cloud_spanning_tens_of_km_costs_what_its_points_cost():
+    """40 points spread over 30 km: the former dense grid held 4e8 cells (3.2 GB) for them."""
+    import tracemalloc
+
+    rng = np.random.default_rng(5)
+    pts = np.c_[rng.uniform(-15_000, 15_000, (40, 2)), rng.normal(0, 1, 40)]
+    pts[:2, :2] = [[-15_000, -15_000], [15_000, 15_000]]
+    tracemalloc.start()
+    try:
+        h = height_above_ground(pts, 1.5, 4.5, 20.0)
+        cells = lowest_per_cell(pts, 1.5)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 1_000_000, f"{peak} bytes for 40 points"
+    assert len(cells[1]) == 40  # one cell per isolated point, nothing else materialised
+    # each point is alone in its window: the window's only value is its own cell's lowest point
+    np.testing.assert_array_equal(h, np.zeros(40))
+
+
+def test_ground_refuses_a_cloud_beyond_the_int64_cell_keys():
+    pts = np.array([[0.0, 0.0, 0.0], [1e30, 0.0, 0.0]])
+    with pytest.raises(InputError, match="ground grid"):
+        height_above_ground(pts, 1.5, 4.5, 20.0)
+
+
 def test_terrain_under_a_roof_is_the_ground_around_the_building():
     rng = np.random.default_rng(13)
     xy = rng.uniform(-30, 30, (20000, 2))
@@ -343,7 +385,7 @@ def test_upright_hough_groups_true_correspondences_and_uses_heights():
         model=np.r_[np.arange(n_true), rng.integers(0, 200, n_out)].astype(np.int64),
         distance=np.zeros(n_true + n_out),
     )
-    groups = group_upright_hough(
+    groups = _hough(
         scene,
         heights,
         model,
@@ -360,7 +402,7 @@ def test_upright_hough_groups_true_correspondences_and_uses_heights():
         len(groups[0]) < 3 * n_true
     )  # 600 random outliers: the peak is mostly true correspondences
     # the same correspondences with the scene lifted 1 m off the ground are height-inconsistent
-    none = group_upright_hough(
+    none = _hough(
         scene,
         heights + 1.0,
         model,
@@ -409,18 +451,18 @@ def test_verify_overlap_follows_a_sparse_scene_spacing_but_not_a_dense_one():
     model = _box_surface(0.3)
     # a far target in a two-view cloud: the same surface, sampled every 0.9 m
     sparse = _box_surface(0.9, offset_m=0.45)
-    v = verify_with_icp(model, sparse, np.eye(4), 0.6, 0.3, 0)
+    v = _verify(model, sparse, np.eye(4), 0.6, 0.3, 0)
     assert v.overlap >= 0.9
     # at the fixed 0.3 m distance a 0.9 m grid explains under half of the model
     hit = np.isfinite(cKDTree(sparse).query(model, distance_upper_bound=0.3)[0])
     assert hit.mean() < 0.5
     # a dense scene keeps the configured distance: a copy 0.4 m off every face does not overlap
     dense_off = _box_surface(0.3) + 0.4
-    v_dense = verify_with_icp(model, dense_off, np.eye(4), 0.6, 0.3, 0)
+    v_dense = _verify(model, dense_off, np.eye(4), 0.6, 0.3, 0)
     assert v_dense.overlap < 0.5
     # clutter keeps the fixed distance: a pole of sparse points 1 m inside the box is unexplained
     pole = np.stack([np.full(3, 3.0), np.full(3, 1.5), [0.9, 1.2, 1.5]], -1)
-    v_pole = verify_with_icp(model, np.concatenate([sparse, pole]), np.eye(4), 0.6, 0.3, 0)
+    v_pole = _verify(model, np.concatenate([sparse, pole]), np.eye(4), 0.6, 0.3, 0)
     assert v_pole.clutter > v.clutter
 
 
@@ -433,8 +475,8 @@ def test_verify_on_the_hypothesis_neighbourhood_equals_verify_on_the_whole_scene
     scene = np.concatenate([ground.reshape(-1, 3), target])
     T = np.eye(4)
     T[:3, 3] = [20.4, 9.7, 0.1]
-    whole = verify_with_icp(model, scene, T, 0.6, 0.3, 30)
-    near = verify_with_icp(model, scene, T, 0.6, 0.3, 30, icp_reach_m=3.0)
+    whole = _verify(model, scene, T, 0.6, 0.3, 30)
+    near = _verify(model, scene, T, 0.6, 0.3, 30, icp_reach_m=3.0)
     assert np.linalg.norm(whole.T_scene_model[:3, 3] - T[:3, 3]) > 0.2  # ICP did move it
     assert whole.overlap > 0.9
     assert np.array_equal(near.T_scene_model, whole.T_scene_model)
@@ -442,8 +484,8 @@ def test_verify_on_the_hypothesis_neighbourhood_equals_verify_on_the_whole_scene
     # nothing within reach: the hypothesis stays where RANSAC put it, as on the whole scene
     T_far = np.eye(4)
     T_far[:3, 3] = [500.0, 0.0, 0.0]
-    far_whole = verify_with_icp(model, scene, T_far, 0.6, 0.3, 30)
-    far_near = verify_with_icp(model, scene, T_far, 0.6, 0.3, 30, icp_reach_m=3.0)
+    far_whole = _verify(model, scene, T_far, 0.6, 0.3, 30)
+    far_near = _verify(model, scene, T_far, 0.6, 0.3, 30, icp_reach_m=3.0)
     assert np.array_equal(far_near.T_scene_model, T_far)
     assert np.array_equal(far_whole.T_scene_model, T_far)
 
@@ -455,16 +497,16 @@ def test_verify_refines_again_on_the_whole_scene_a_hypothesis_that_moves_beyond_
     patch = np.stack(np.meshgrid(g, g, [0.0]), -1).reshape(-1, 3)
     T = np.eye(4)
     T[0, 3] = 1.5
-    whole = verify_with_icp(patch, patch, T, 0.6, 0.3, 100)
+    whole = _verify(patch, patch, T, 0.6, 0.3, 100)
     assert whole.T_scene_model[0, 3] < 0.5
     start = patch.mean(0) + T[:3, 3]
     reach_m = 0.05
     radius = np.linalg.norm(patch - patch.mean(0), axis=1).max() + 0.6 + reach_m
     crop = patch[np.linalg.norm(patch - start, axis=1) <= radius]
     assert not np.array_equal(
-        verify_with_icp(patch, crop, T, 0.6, 0.3, 100).T_scene_model, whole.T_scene_model
+        _verify(patch, crop, T, 0.6, 0.3, 100).T_scene_model, whole.T_scene_model
     )
-    near = verify_with_icp(patch, patch, T, 0.6, 0.3, 100, icp_reach_m=reach_m)
+    near = _verify(patch, patch, T, 0.6, 0.3, 100, icp_reach_m=reach_m)
     assert np.array_equal(near.T_scene_model, whole.T_scene_model)
 
 
@@ -474,9 +516,9 @@ def test_verify_does_not_count_a_points_own_noise_as_clutter():
     # the top face seen from far away: depth noise of 0.5 m (1 sigma), far beyond the 0.3 m overlap
     top = model[model[:, 2] == 2.0]
     noisy = top - np.array([0.0, 0.0, 0.5]) * np.abs(rng.normal(size=(len(top), 1)))
-    without = verify_with_icp(model, noisy, np.eye(4), 0.6, 0.3, 0)
+    without = _verify(model, noisy, np.eye(4), 0.6, 0.3, 0)
     sigma = np.full(len(noisy), 0.5)
-    with_sigma = verify_with_icp(
+    with_sigma = _verify(
         model, noisy, np.eye(4), 0.6, 0.3, 0, scene_sigma_m=sigma, k_clutter_sigma=2.0
     )
     assert without.clutter > 0.4
@@ -484,7 +526,7 @@ def test_verify_does_not_count_a_points_own_noise_as_clutter():
     # a precise point that lies off the model stays clutter however noisy the others are
     pole = np.array([[3.0, 1.5, 1.0]])
     sigma_pole = np.concatenate([sigma, [0.01]])
-    v = verify_with_icp(
+    v = _verify(
         model,
         np.concatenate([noisy, pole]),
         np.eye(4),

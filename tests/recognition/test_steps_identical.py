@@ -13,17 +13,55 @@ import pytest
 from atr.errors import InputError
 from atr.recognition import (
     Correspondences,
+    HoughSettings,
     RecognitionConfig,
+    YawWindow,
     _kernels,
     descriptor_sq_distances,
     group_upright_hough,
+    height_above_ground,
     knndr_from_distances,
+    lowest_per_cell,
     ransac_per_group,
     rigid_transform,
 )
 from atr.recognition.matcher import _match_views
 
+
+def _hough(scene, heights, model, corr, yaw_centre_rad=None, yaw_half_width_rad=np.pi, **kw):
+    """``group_upright_hough`` with its settings and heading window given as keywords."""
+    window = None if yaw_centre_rad is None else YawWindow(yaw_centre_rad, yaw_half_width_rad)
+    return group_upright_hough(scene, heights, model, corr, HoughSettings(**kw), window)
+
+
 # ------------------------------------------------------------------------------ references
+
+
+def reference_ground_grid(points, cell_m):
+    """The former dense raster of each cell's lowest z (inf where empty), its origin, each point's cell."""
+    ij = np.floor(points[:, :2] / cell_m).astype(np.int64)
+    origin = ij.min(axis=0)
+    ij -= origin
+    grid = np.full(tuple(int(x) for x in ij.max(axis=0) + 1), np.inf)
+    np.minimum.at(grid, (ij[:, 0], ij[:, 1]), points[:, 2])
+    return ij, grid, origin
+
+
+def reference_height_above_ground(points, cell_m, window_m, percentile):
+    from scipy import ndimage
+
+    ij, grid, _ = reference_ground_grid(points, cell_m)
+    size = 2 * max(1, int(round(window_m / cell_m))) + 1
+    ground = ndimage.percentile_filter(grid, percentile, size=size, mode="constant", cval=np.inf)
+    fallback = ndimage.minimum_filter(grid, size=size, mode="constant", cval=np.inf)
+    ground = np.where(np.isfinite(ground), ground, fallback)
+    return points[:, 2] - ground[ij[:, 0], ij[:, 1]]
+
+
+def reference_lowest_per_cell(points, cell_m):
+    _, grid, origin = reference_ground_grid(points, cell_m)
+    filled = np.argwhere(np.isfinite(grid))
+    return (filled + origin + 0.5) * cell_m, grid[filled[:, 0], filled[:, 1]]
 
 
 def reference_knndr(d2, k, ratio, max_correspondences=None):
@@ -354,7 +392,7 @@ def test_upright_hough_matches_the_numpy_reference():
             to_cam = rng.uniform(-np.pi, np.pi, len(corr))
             kw["yaw_centre_rad"] = to_cam - np.radians(rng.choice([0.0, 15.0, 90.0]))
             kw["yaw_half_width_rad"] = float(rng.choice([0.3, np.pi / 12 + 0.1, np.pi]))
-        got = group_upright_hough(scene, heights, model, corr, **kw)
+        got = _hough(scene, heights, model, corr, **kw)
         want = reference_hough(scene, heights, model, corr, **kw)
         assert len(got) == len(want)
         assert all(_same_array(g, w) for g, w in zip(got, want, strict=True))
@@ -378,9 +416,7 @@ def test_upright_hough_heading_window_edges_match_the_numpy_reference():
     yaw[::50] = 1e7
     yaw[1::50] = np.nan
     kw = {"cell_m": 0.9, "yaw_bin_rad": bin_rad, "height_tol_m": 0.45, "min_size": 3}
-    got = group_upright_hough(
-        scene, heights, model, corr, yaw_centre_rad=yaw, yaw_half_width_rad=half, **kw
-    )
+    got = _hough(scene, heights, model, corr, yaw_centre_rad=yaw, yaw_half_width_rad=half, **kw)
     want = reference_hough(
         scene, heights, model, corr, yaw_centre_rad=yaw, yaw_half_width_rad=half, **kw
     )
@@ -481,3 +517,20 @@ def test_upright_sample_kernel_reproduces_numpys_headings_including_signed_zeros
             assert got.tobytes() == np.ascontiguousarray(want).tobytes()
         yaw, yaw2 = np.arctan2(cross, dot), np.arctan2(cross2, dot2)
         assert yaw.tobytes() == yaw2.tobytes()
+
+
+@pytest.mark.parametrize("percentile", [0.0, 20.0, 50.0, 99.0, 100.0])
+@pytest.mark.parametrize("window_m", [1.5, 4.5, 7.0])
+def test_ground_on_occupied_cells_equals_the_dense_raster(percentile, window_m):
+    """Dense, sparse and clustered clouds, negative coordinates, ties: the same values bit for bit."""
+    rng = np.random.default_rng(int(percentile * 10 + window_m * 100))
+    terrain = np.c_[rng.uniform(-30, 10, (3000, 2)), rng.normal(0, 0.3, 3000)]
+    roof = np.c_[rng.uniform(-5, 5, (400, 2)), np.full(400, 2.0)]  # tied z values
+    sparse = np.c_[rng.uniform(-200, 150, (60, 2)), rng.normal(0, 2, 60)]
+    for pts in (terrain, np.r_[terrain, roof, sparse], sparse, terrain[:1]):
+        np.testing.assert_array_equal(
+            height_above_ground(pts, 1.5, window_m, percentile),
+            reference_height_above_ground(pts, 1.5, window_m, percentile),
+        )
+        for got, want in zip(lowest_per_cell(pts, 1.5), reference_lowest_per_cell(pts, 1.5)):
+            np.testing.assert_array_equal(got, want)
