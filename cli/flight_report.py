@@ -13,57 +13,10 @@ from typing import Any
 import numpy as np
 
 from atr.evaluation.metrics import Counts, SceneScore, count
-from atr.evaluation.runner import SceneRecord, detection_dict
 from atr.evaluation.scoring import score_record
+from bus.evaluation import scene_record
 
 TARGET = "t72"
-
-
-def scene_record(
-    truth: dict | None,
-    detections: dict | None,
-    camera_pose: dict | None,
-    *,
-    time_ms: float = float("nan"),
-    stages_ms: dict[str, float] | None = None,
-    cloud_points: int = 0,
-) -> SceneRecord:
-    """A SceneRecord from one frame's bus messages (decoded Truth, Detections and CameraPose).
-
-    An SfM cloud is placed with the estimated camera pose, so its detections are judged relative to it;
-    a LIDAR cloud, or a scene without a CameraPose, is placed with the true pose.
-    """
-    truth = truth or {}
-    found = [
-        detection_dict(d["target"], d["T_world_target"], d["score"])
-        for d in (detections or {}).get("detections", [])
-    ]
-    T_true = np.asarray(truth["T_world_cam"]).tolist() if "T_world_cam" in truth else None
-    from_sfm = str((detections or {}).get("source", "")).startswith("sfm")
-    T_est = (
-        np.asarray(camera_pose["T_world_cam"]).tolist()
-        if from_sfm and camera_pose is not None
-        else T_true
-    )
-    return SceneRecord(
-        frame=int(truth.get("frame_seq", -1)),
-        stamp_ns=int((detections or truth).get("stamp_ns", 0)),
-        truth=[
-            {
-                "name": t["name"],
-                "position_m": [float(v) for v in np.asarray(t["T_world_target"])[:3, 3]],
-                "visible_fraction": float(t["visible_fraction"]),
-            }
-            for t in truth.get("targets", [])
-        ],
-        detections=found,
-        time_ms=time_ms,
-        stages_ms=stages_ms or {},
-        cloud_points=cloud_points,
-        error=None if detections is not None else "no answer",
-        T_world_cam_true=T_true,
-        T_world_cam_est=T_est,
-    )
 
 
 def score(truth: dict | None, detections: dict, camera_pose: dict | None = None) -> SceneScore:
@@ -109,7 +62,7 @@ class FlightPrinter:
 
     def attach(self, session: object) -> None:
         """Start printing from a bus session."""
-        from bus.pipeline import FlightWatch  # noqa: PLC0415
+        from bus.pipeline import FlightWatch
 
         print("flying; one line per scene:", flush=True)
         self._watch = FlightWatch(session, "uav1", self._print)
@@ -131,7 +84,7 @@ def summarise(path: Path) -> Counts | None:
 
     Scenes without a pair (empty first clouds) are not scenes.
     """
-    from bus.pipeline import flight_scenes  # noqa: PLC0415
+    from bus.pipeline import flight_scenes
 
     scenes = [(t, d, c) for t, d, c in flight_scenes(path) if is_scene(d)]
     if not scenes:

@@ -132,11 +132,11 @@ class ExampleScene:
 
 def example_scenes(recording: Path, count: int = EXAMPLE_SCENES) -> list[ExampleScene]:
     """Up to `count` true positives of a recorded simulated flight, spread over the flight (so over azimuth)."""
-    import open3d as o3d  # noqa: PLC0415
+    import open3d as o3d
 
-    from atr.sim.vehicles import t72  # noqa: PLC0415
-    from bus.pipeline import flight_clouds, flight_scenes  # noqa: PLC0415
-    from cli.flight_report import TARGET, is_scene, score  # noqa: PLC0415
+    from atr.sim.vehicles import t72
+    from bus.pipeline import flight_clouds, flight_scenes
+    from cli.flight_report import TARGET, is_scene, score
 
     clouds = flight_clouds(recording)
     hits = []
@@ -197,10 +197,10 @@ class Figures:
     def __init__(self, out: Path) -> None:
         self.out = out
         try:
-            import matplotlib  # noqa: PLC0415
+            import matplotlib
 
             matplotlib.use("Agg")
-            import matplotlib.pyplot as plt  # noqa: PLC0415
+            import matplotlib.pyplot as plt
 
             self.plt = plt
         except ImportError:
@@ -344,7 +344,7 @@ class Figures:
 
 
 def _f1_by(rows: Sequence[Mapping[str, Any]], key: Any) -> dict[Any, dict[str, dict[str, Any]]]:
-    from atr.evaluation.aggregate import arm_label, pool  # noqa: PLC0415
+    from atr.evaluation.aggregate import arm_label, pool
 
     pooled = pool(rows, lambda r: (key(r), arm_label(r)))
     out: dict[Any, dict[str, dict[str, Any]]] = {}
@@ -389,7 +389,7 @@ def _scene_outcomes(rows: Sequence[Mapping[str, Any]]) -> dict[str, tuple[tuple,
     """Each arm's scene outcomes, its runs in (scenario, run) order, with the runs they came from
     (two arms pair only on the same runs); arms with a run written without outcomes are left out.
     """
-    from atr.evaluation.aggregate import arm_label  # noqa: PLC0415
+    from atr.evaluation.aggregate import arm_label
 
     by_arm: dict[str, list[Mapping[str, Any]]] = {}
     for row in rows:
@@ -405,7 +405,7 @@ def _scene_outcomes(rows: Sequence[Mapping[str, Any]]) -> dict[str, tuple[tuple,
 
 
 def _interval(outcomes: Mapping[str, tuple[tuple, list[str]]], arm: str) -> str:
-    from atr.evaluation.metrics import f1_interval  # noqa: PLC0415
+    from atr.evaluation.metrics import f1_interval
 
     if arm not in outcomes:
         return "–"
@@ -419,7 +419,7 @@ def _differences_section(
     """F1 of each SfM GFTT descriptor and of each other method's best against the best SfM GFTT arm,
     with paired bootstrap intervals of the difference.
     """
-    from atr.evaluation.metrics import INTERVAL_CONFIDENCE, f1_interval  # noqa: PLC0415
+    from atr.evaluation.metrics import INTERVAL_CONFIDENCE, f1_interval
 
     best = _best(overall, "gftt-sfm/")
     if best is None or best[0] not in outcomes:
@@ -467,8 +467,8 @@ def _false_positives_section(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     """Each arm's false positives by what its best target hypothesis sat on (details'
     ``false_positives_on``); nothing when the result predates that field.
     """
-    from atr.evaluation.aggregate import arm_label  # noqa: PLC0415
-    from cli.evaluate import NOT_ON_A_VEHICLE  # noqa: PLC0415
+    from atr.evaluation.aggregate import arm_label
+    from atr.evaluation.tables import NOT_ON_A_VEHICLE
 
     if not rows or any("false_positives_on" not in r for r in rows):
         return []
@@ -531,7 +531,7 @@ def build_report(
     """Build the report's Markdown (figures written into `out`); `configs` of every result; Fig. 7 from the
     recorded flight `example` when given.
     """
-    from atr.evaluation.aggregate import (  # noqa: PLC0415
+    from atr.evaluation.aggregate import (
         DESCRIPTOR_LENGTH,
         OBLIQUITY_CLASS,
         PAPER_OBLIQUITY_F1,
@@ -543,7 +543,7 @@ def build_report(
         pool,
         select,
     )
-    from atr.evaluation.timing import REFERENCE_WORKLOAD  # noqa: PLC0415
+    from atr.evaluation.timing import REFERENCE_WORKLOAD
 
     figs = Figures(out)
     clean = select(details, noise="none")
@@ -869,7 +869,7 @@ def build_report(
 
 def run(args: argparse.Namespace) -> int:
     """Read the result(s), write the report."""
-    from atr.errors import InputError  # noqa: PLC0415
+    from atr.errors import InputError
 
     folders = [p.resolve() for p in (args.results or [REPO / "results" / "latest"])]
     details: list[dict] = []

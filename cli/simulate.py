@@ -18,7 +18,7 @@ from pathlib import Path
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr simulate`."""
-    from services.sensor_source.main import add_flight_arguments  # noqa: PLC0415
+    from bus.flight_messages import add_flight_arguments
 
     add_flight_arguments(parser)
     parser.add_argument("--uav", default="uav1", help="vehicle id in the keys")
@@ -30,9 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate and record."""
-    from atr.config import load_config  # noqa: PLC0415
-    from bus.recording import write_messages  # noqa: PLC0415
-    from services.sensor_source.main import flight_frames, frame_messages  # noqa: PLC0415
+    from atr.config import load_config
+    from bus.flight_messages import flight_frames, frame_messages
+    from bus.recording import write_messages
 
     config = load_config(None, args.overrides)
     frames = flight_frames(config, args)

@@ -46,8 +46,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Write the meshes; returns 0."""
-    from atr.io.mesh import save_mesh  # noqa: PLC0415
-    from atr.sim import VEHICLES, build_world, scenario  # noqa: PLC0415
+    from atr.io.mesh import save_mesh
+    from atr.sim import VEHICLES, build_world, scenario
 
     out: Path = args.out
     for name, make in VEHICLES.items():

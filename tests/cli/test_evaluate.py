@@ -12,7 +12,8 @@ import numpy as np
 from atr.config import AtrConfig
 from atr.evaluation.runner import Flight, SceneRecord
 from atr.evaluation.scoring import summarise
-from cli.evaluate import NOT_ON_A_VEHICLE, execute, false_positives_on, flight_vehicles, plan, rows
+from atr.evaluation.tables import NOT_ON_A_VEHICLE, false_positives_on, flight_vehicles, rows
+from cli.evaluate import execute, plan
 from cli.main import build_parser
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "evaluation"))
@@ -77,7 +78,7 @@ def test_each_worker_gets_its_share_of_the_cores():
     # in a fresh interpreter, as a worker process starts
     code = (
         "import cv2, numba\n"
-        "from cli.evaluate import _share_the_cores\n"
+        "from atr.evaluation.experiment import _share_the_cores\n"
         "_share_the_cores(2)\n"
         "print(numba.get_num_threads(), cv2.getNumThreads(), numba.config.NUMBA_NUM_THREADS)\n"
     )

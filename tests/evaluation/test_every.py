@@ -19,7 +19,7 @@ ARGS = [*SMALL_FLIGHT, "--frames", "7"]
 
 
 def scenes(results, every: int):
-    from cli.evaluate import execute, plan  # noqa: PLC0415
+    from cli.evaluate import execute, plan
 
     p = plan(build_parser().parse_args([*ARGS, "--every", str(every), "--results", str(results)]))
     out = execute(p)
@@ -42,7 +42,7 @@ def test_every_third_scene_equals_the_full_runs_scenes(tmp_path):
 
 
 def test_every_is_refused_with_the_service_graph(tmp_path):
-    from cli.evaluate import plan  # noqa: PLC0415
+    from cli.evaluate import plan
 
     args = build_parser().parse_args(
         [*ARGS, "--every", "2", "--via-services", "--results", str(tmp_path)]
@@ -54,7 +54,7 @@ def test_every_is_refused_with_the_service_graph(tmp_path):
 def test_a_navigation_fix_every_frame_bounds_the_drift(tmp_path):
     """sim.nav_fix_every_frame: each pair is integrated from a correct state over one frame interval, so the
     camera pose the cloud is placed with stays near the truth while dead reckoning from take-off drifts."""
-    from cli.evaluate import execute, plan  # noqa: PLC0415
+    from cli.evaluate import execute, plan
 
     def last_scene(extra: list[str], folder: str):
         args = [*ARGS, "--every", "6", "--results", str(tmp_path / folder), *extra]

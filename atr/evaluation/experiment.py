@@ -1,0 +1,413 @@
+"""The paper's experiments (§III) as a plan of flights x arms, computed or loaded from the run cache.
+
+`plan(request)` resolves a `Request` (what `atr eval` asks for) into flights, arms and the effective
+configuration; `execute(plan)` computes every (flight, arm) result that is not current in the cache, in-process
+(the services' functions, same seeds: identical detections; optionally in worker processes) or through the real
+service graph (`bus.evaluation`, handed in by the caller: the bus is not this package's to import), and returns each run's SceneRecords.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import pickle
+import time
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from atr.baselines2d import (
+    PAIRS,
+    crop_template_views,
+    describe_templates,
+    template_storage_bytes,
+)
+from atr.config import AtrConfig, load_config, to_dict
+from atr.errors import ConfigError
+from atr.evaluation.io import code_version, jsonable, load_run, run_key, save_run
+from atr.evaluation.runner import (
+    Arm,
+    Flight,
+    SceneRecord,
+    arm_config,
+    pair_descriptor,
+    run_flight,
+)
+from atr.evaluation.timing import reference_workload_ms
+from atr.io.mesh import load_mesh
+from atr.sim.noise import parse_noise
+from atr.sim.scenarios import TABLE_II
+from atr.template_store import TemplateStore, template_from_message
+
+REPO = Path(__file__).resolve().parents[2]
+# Runs a flight's 3D arms through the service graph: (flight, arms, plan, work folder) -> records per arm.
+ViaServices = Callable[["Flight", list["Arm"], "Plan", Path], dict["Arm", list["SceneRecord"]]]
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class Request:
+    """What an evaluation asks for (`atr eval`'s options); empty selections mean the defaults."""
+
+    scenarios: tuple[int, ...] = ()
+    """Table II scenarios (default all)."""
+    runs: tuple[int, ...] = ()
+    """Runs within each scenario (default all)."""
+    frames: int | None = None
+    """Only the first N frames of each run."""
+    every: int = 1
+    """Only every K-th scene of each run."""
+    pipelines: tuple[str, ...] = ("gftt-sfm",)
+    """gftt-sfm, surf-sfm, sgm-sfm, lidar, 2d-1 .. 2d-4."""
+    descriptors: tuple[str, ...] = ()
+    """3D descriptors of the 3D pipelines (default the configuration's)."""
+    noises: tuple[str, ...] = ("none",)
+    """none, shot, gaussian:10, gaussian:30."""
+    seed: int = 0
+    """World seed."""
+    target_mesh: str | None = None
+    """Mesh file of the target (its template and its world)."""
+    clutter_meshes: tuple[str, ...] = ()
+    """Extra confuser meshes."""
+    overrides: tuple[str, ...] = ()
+    """`group.field=value` configuration overrides."""
+    results: Path = REPO / "results"
+    """Results folder (the run cache lives in its runs/ and cache/)."""
+    via_services: bool = False
+    """Whether the 3D pipelines run through the real service graph."""
+
+
+@dataclass
+class Plan:
+    """What an invocation evaluates."""
+
+    config: AtrConfig
+    overrides: list[str]
+    flights: list[Flight]
+    arms: list[Arm]
+    version: str
+    results: Path
+    b2d: Any  # Baseline2dConfig
+    templates_3d: dict[str, list[Any]] = field(default_factory=dict)
+    templates_2d: dict[str, list[Any]] = field(default_factory=dict)
+    storage_kb: dict[tuple[str, str], float] = field(default_factory=dict)
+    reference_ms: dict[Flight, float] = field(default_factory=dict)  # the workload's time
+
+
+def _flights(request: Request) -> list[Flight]:
+    scenarios = list(request.scenarios) or sorted(TABLE_II)
+    for noise in request.noises:
+        parse_noise(noise)  # refuses a bad spec before any work
+    flights = []
+    for s in scenarios:
+        if s not in TABLE_II:
+            raise ConfigError(f"scenario {s} must be one of {sorted(TABLE_II)}")
+        runs = range(1, len(TABLE_II[s][1]) + 1)
+        for r in [r for r in (request.runs or runs) if r in runs]:
+            flights.extend(
+                Flight(
+                    s,
+                    r,
+                    request.frames,
+                    request.seed,
+                    noise,
+                    request.target_mesh,
+                    request.clutter_meshes,
+                    request.every,
+                )
+                for noise in request.noises
+            )
+    if not flights:
+        raise ConfigError(f"no run of scenarios {scenarios} matches --run {list(request.runs)}")
+    if request.frames is not None and request.frames < 2:
+        raise ConfigError(f"--frames {request.frames} must be >= 2 (a scene is a pair of frames)")
+    if request.every > 1 and request.via_services:
+        raise ConfigError(
+            f"--every {request.every} samples scenes in-process; --via-services replays whole flights"
+        )
+    return flights
+
+
+def _arms(request: Request, config: AtrConfig) -> list[Arm]:
+    descriptors = request.descriptors or (config.recognition.descriptor,)
+    arms = []
+    for p in request.pipelines:
+        if p in PAIRS:
+            arms.append(Arm(p, pair_descriptor(p)))
+        else:  # Arm refuses an unknown pipeline or descriptor with a ConfigError naming it
+            arms.extend(Arm(p, d) for d in descriptors)
+    return list(dict.fromkeys(arms))
+
+
+def plan(request: Request) -> Plan:
+    """Resolve the configuration, flights and arms of a request.
+
+    Raises:
+        ConfigError: an unknown scenario, pipeline, descriptor, noise or configuration field, or
+            options that do not go together.
+
+    """
+    overrides = list(request.overrides)
+    if request.target_mesh:
+        overrides.append(
+            f"pipeline.target_meshes=[{json.dumps(str(Path(request.target_mesh).resolve()))}]"
+        )
+    config = load_config(None, overrides)
+    return Plan(
+        config,
+        overrides,
+        _flights(request),
+        _arms(request, config),
+        code_version(),
+        request.results,
+        config.baselines2d,
+    )
+
+
+def _effective(plan_: Plan, arm: Arm) -> dict[str, Any]:
+    data: dict[str, Any] = {"atr": to_dict(arm_config(plan_.config, arm))}
+    if arm.is_2d:
+        data["baseline2d"] = plan_.b2d
+    return data
+
+
+def _key(plan_: Plan, flight: Flight, arm: Arm, via_services: bool) -> str:
+    return run_key(
+        flight,
+        arm,
+        _effective(plan_, arm) | {"via_services": via_services and not arm.is_2d},
+        plan_.version,
+    )
+
+
+# ------------------------------------------------------------------------------------------- templates
+
+
+def _templates_3d(plan_: Plan) -> None:
+    """Build the templates of every target per descriptor, exactly as template_store serves them."""
+    for arm in plan_.arms:
+        if arm.is_2d or arm.descriptor in plan_.templates_3d:
+            continue
+        config = arm_config(plan_.config, arm)
+        store = TemplateStore(config, REPO / "templates")
+        templates = [
+            template_from_message(store.message(name, arm.descriptor)) for name in store.meshes
+        ]
+        plan_.templates_3d[arm.descriptor] = templates
+        target = next((t for t in templates if t.target == plan_.flights[0].target), templates[0])
+        kb = (target.descriptors.nbytes + target.keypoints_m.nbytes) / 1024
+        plan_.storage_kb[("3d", arm.descriptor)] = kb
+
+
+def _templates_2d(plan_: Plan, progress: Progress) -> None:
+    pairs = [a.pipeline for a in plan_.arms if a.is_2d]
+    if not pairs:
+        return
+    f0 = plan_.flights[0]
+    key = run_key(
+        replace(
+            f0,
+            scenario=plan_.b2d.template_scenario,
+            run=plan_.b2d.template_run,
+            frames=None,
+            noise="none",
+        ),
+        Arm("2d-1", "gftt+freak"),
+        {"sim": jsonable(plan_.config.sim), "b2d": jsonable(plan_.b2d)},
+        plan_.version,
+    )
+    path = plan_.results / "cache" / f"views2d-{key}.pickle"
+    if path.exists():
+        views = pickle.loads(path.read_bytes())
+    else:
+        progress(
+            f"cropping the 12 2D templates from scenario {plan_.b2d.template_scenario} run "
+            f"{plan_.b2d.template_run} (seed {f0.seed})"
+        )
+        views = crop_template_views(
+            f0.seed,
+            plan_.config.sim,
+            plan_.b2d,
+            target_mesh=load_mesh(f0.target_mesh) if f0.target_mesh else None,
+            target_name=f0.target if f0.target_mesh else None,
+            clutter_meshes=tuple(load_mesh(p) for p in f0.clutter_meshes),
+        )
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(pickle.dumps(views))
+    for pair in pairs:
+        plan_.templates_2d[pair] = describe_templates(views, pair, plan_.b2d)
+        plan_.storage_kb[("2d", pair)] = template_storage_bytes(plan_.templates_2d[pair]) / 1024
+
+
+def storage_key(arm: Arm) -> tuple[str, str]:
+    """The key of an arm's template storage in `Plan.storage_kb`: (2d, pair) or (3d, descriptor)."""
+    return ("2d", arm.pipeline) if arm.is_2d else ("3d", arm.descriptor)
+
+
+def _reuse_extra(plan_: Plan, flight: Flight, arm: Arm, run_file: Path) -> None:
+    """A reused result's template storage and reference time, from its run file: templates are only built
+    for runs to do, so an invocation whose results are all current would otherwise report none.
+    """
+    extra = json.loads(run_file.read_text()).get("extra", {})
+    if extra.get("storage_kb") is not None:
+        plan_.storage_kb.setdefault(storage_key(arm), extra["storage_kb"])
+    if extra.get("reference_ms") is not None:
+        plan_.reference_ms.setdefault(flight, extra["reference_ms"])
+
+
+# ------------------------------------------------------------------------------------------- running
+
+
+def _silent(text: str) -> None:
+    del text
+
+
+def _work_in_process(
+    flight: Flight,
+    arms: list[Arm],
+    config: AtrConfig,
+    templates_3d: dict,
+    templates_2d: dict,
+    b2d: Any,
+) -> tuple[dict[Arm, list[SceneRecord]], float]:
+    """One flight through every arm, in a worker process; and the reference workload's time there."""
+    reference_ms = reference_workload_ms()
+    return run_flight(flight, arms, config, templates_3d, templates_2d, b2d), reference_ms
+
+
+def _share_the_cores(workers: int) -> None:
+    """Give a worker its share of the machine's cores (one of ``workers``) for its compiled and OpenCV
+    threads.
+
+    Every worker would otherwise start a thread per core for each parallel loop (numba's descriptors and
+    neighbour searches, OpenCV's semi-global matching): with two workers on two cores the threads of one
+    wait for the other's, and a scene took 1.2-1.5 x its one-worker time (docs/performance.md). The
+    thread count changes no result: each loop's iterations are independent, and OpenCV's matcher gives
+    the same disparities with 1-8 threads.
+    """
+    import cv2
+    import numba
+
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    cv2.setNumThreads(threads)
+
+
+def execute(
+    plan_: Plan,
+    *,
+    jobs: int = 1,
+    via_services: ViaServices | None = None,
+    force: bool = False,
+    progress: Progress = _silent,
+) -> dict[tuple[Flight, Arm], list[SceneRecord]]:
+    """Compute (or load) every (flight, arm) result of a plan.
+
+    Args:
+        plan_: what to evaluate.
+        jobs: worker processes (flights run in parallel; in-process runs only).
+        via_services: when given (`bus.evaluation.run_via_services`), the 3D arms run through the
+            real service graph from recordings, flight by flight, with this function.
+        force: recompute runs even when a current result exists.
+        progress: called with one line of progress at a time.
+
+    Returns:
+        (flight, arm) -> SceneRecords.
+
+    Raises:
+        AtrError: the service graph failed on a flight (via_services).
+
+    """
+    runs_dir = plan_.results / "runs"
+    results: dict[tuple[Flight, Arm], list[SceneRecord]] = {}
+    todo: dict[Flight, list[Arm]] = {}
+    keys: dict[tuple[Flight, Arm], str] = {}
+    for flight in plan_.flights:
+        for arm in plan_.arms:
+            key = keys[(flight, arm)] = _key(plan_, flight, arm, via_services is not None)
+            records = None if force else load_run(runs_dir / f"{key}.json", key)
+            if records is None:
+                todo.setdefault(flight, []).append(arm)
+            else:
+                results[(flight, arm)] = records
+                _reuse_extra(plan_, flight, arm, runs_dir / f"{key}.json")
+    total = len(plan_.flights) * len(plan_.arms)
+    progress(
+        f"atr eval: {total} runs ({len(plan_.flights)} flights x {len(plan_.arms)} pipelines/descriptors), "
+        f"{total - sum(map(len, todo.values()))} current results reused, code {plan_.version}"
+    )
+    if not todo:
+        return results
+    _templates_3d(plan_)
+    _templates_2d(plan_, progress)
+    started = time.monotonic()
+    done = 0
+
+    def finish(flight: Flight, out: dict[Arm, list[SceneRecord]], reference_ms: float) -> None:
+        nonlocal done
+        plan_.reference_ms[flight] = reference_ms
+        for arm, records in out.items():
+            save_run(
+                runs_dir / f"{keys[(flight, arm)]}.json",
+                flight,
+                arm,
+                keys[(flight, arm)],
+                records,
+                {
+                    "storage_kb": plan_.storage_kb.get(storage_key(arm)),
+                    "reference_ms": reference_ms,
+                },
+            )
+            results[(flight, arm)] = records
+        done += 1
+        elapsed = time.monotonic() - started
+        eta = elapsed / done * (len(todo) - done)
+        bar = "#" * (20 * done // len(todo))
+        progress(
+            f"[{bar:<20}] {done}/{len(todo)} flights  scenario {flight.scenario} run {flight.run} "
+            f"noise {flight.noise}: {len(out)} runs, {elapsed:.0f} s elapsed, ~{eta:.0f} s left"
+        )
+
+    if via_services is not None:
+        workdir = plan_.results / "services"
+        for flight, arms in todo.items():
+            reference_ms = reference_workload_ms()
+            finish(flight, via_services(flight, arms, plan_, workdir), reference_ms)
+        return results
+    if jobs <= 1:
+        for flight, arms in todo.items():
+            finish(
+                flight,
+                *_work_in_process(
+                    flight, arms, plan_.config, plan_.templates_3d, plan_.templates_2d, plan_.b2d
+                ),
+            )
+        return results
+    # spawn, not fork: the parent already runs OpenMP/numba threads (template building), and a fork of such a
+    # process is unsafe (GNU OpenMP terminates it).
+    with ProcessPoolExecutor(
+        max_workers=jobs,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_share_the_cores,
+        initargs=(min(jobs, len(todo)),),  # fewer flights than jobs: fewer workers share the cores
+    ) as pool:
+        pending = {
+            pool.submit(
+                _work_in_process,
+                flight,
+                arms,
+                plan_.config,
+                plan_.templates_3d,
+                plan_.templates_2d,
+                plan_.b2d,
+            ): flight
+            for flight, arms in todo.items()
+        }
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                finish(pending.pop(future), *future.result())
+    return results
