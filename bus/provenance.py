@@ -14,13 +14,13 @@ import hashlib
 import json
 import platform
 import socket
-import subprocess
 import time
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
-REPO = Path(__file__).resolve().parents[1]
+from atr.provenance import file_sha256, source_commit, source_sha256
+
 METADATA_NAME = "provenance"
 END_METADATA_NAME = "recording_end"
 CONFIG_ATTACHMENT = "config.json"
@@ -35,8 +35,6 @@ _LIBRARIES = {
     "mcap": "mcap",
     "numba": "numba",
 }
-# What counts as the project's source for its hash: the code and the wire contract.
-_SOURCE_GLOBS = ("atr/**/*.py", "bus/**/*.py", "cli/**/*.py", "services/**/*.py", "schemas/*.json")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,53 +62,6 @@ def _version(dist: str) -> str:
         return version(dist)
     except PackageNotFoundError:
         return "not installed"
-
-
-def source_commit() -> str:
-    """The git commit of the source tree, with `+dirty` when it has uncommitted changes; empty
-    outside a git checkout.
-    """
-    if not (REPO / ".git").exists():
-        return ""
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True, timeout=10
-        )
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=REPO,
-            capture_output=True,
-            text=True,
-            timeout=10,
-        )
-    except (OSError, subprocess.SubprocessError):
-        return ""
-    if head.returncode != 0:
-        return ""
-    return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
-
-
-def source_sha256() -> str:
-    """SHA-256 over the project's source files (path and bytes, in path order): the same sources
-    give the same hash on any machine, installed or checked out.
-    """
-    digest = hashlib.sha256()
-    files = sorted({p for pattern in _SOURCE_GLOBS for p in REPO.glob(pattern)})
-    for path in files:
-        if "__pycache__" in path.parts:
-            continue
-        digest.update(path.relative_to(REPO).as_posix().encode() + b"\0")
-        digest.update(path.read_bytes())
-    return digest.hexdigest()
-
-
-def file_sha256(path: str | Path) -> str:
-    """SHA-256 of a file, read in 16 MiB blocks."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        while block := f.read(1 << 24):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def effective_config(context: RunContext) -> dict[str, Any]:
