@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import ipaddress
 import json
+import re
 import shutil
 import subprocess
 from dataclasses import dataclass
@@ -94,6 +95,31 @@ def _openssl(*args: str, cwd: Path) -> None:
     result = subprocess.run(["openssl", *args], cwd=cwd, capture_output=True, text=True, timeout=60)
     if result.returncode != 0:
         raise ConfigError(f"openssl {args[0]} failed: {result.stderr.strip()}")
+
+
+_HOST_LABEL = re.compile(r"^(?!-)[A-Za-z0-9-]{1,63}(?<!-)$")
+
+
+def check_address(address: str, what: str) -> None:
+    """Refuse an address that is neither an IP address nor a DNS host name (RFC 1123).
+
+    Raises:
+        ConfigError: naming the value and the expected form.
+
+    """
+    try:
+        ipaddress.ip_address(address)
+        return
+    except ValueError:
+        pass
+    labels = address.removesuffix(".").split(".")
+    if 0 < len(address) <= 253 and all(_HOST_LABEL.match(label) for label in labels):
+        return
+    hint = "; the port goes in --port" if address.count(":") == 1 else ""
+    raise ConfigError(
+        f"{what} {address!r} is neither an IP address (e.g. 10.0.0.1, fd00::1) nor a host name "
+        f"(letters, digits and '-' in dot-separated labels, e.g. ground.example.org){hint}"
+    )
 
 
 def _subject_alt_names(hosts: list[str]) -> str:
@@ -337,6 +363,23 @@ def render_config(name: str, values: dict[str, str]) -> dict[str, Any]:
     return json5.loads(text)
 
 
+def seal_key_name(uav: str) -> str:
+    """File stem of the air recorder's Ed25519 signing key: `air-{uav}-recorder.key` / `.pub`."""
+    return f"air-{uav}-recorder"
+
+
+def seal_key(root: Path, uav: str) -> Path:
+    """The air recorder's signing key pair in `root`, made once: a verifier has pinned the public
+    key, so an existing pair is kept, never replaced. Returns the public key's path.
+    """
+    from bus.seal import generate_keys
+
+    public = root / f"{seal_key_name(uav)}.pub"
+    if not public.exists():
+        generate_keys(root, seal_key_name(uav))
+    return public
+
+
 def make_deployment(
     out: str | Path,
     *,
@@ -366,8 +409,9 @@ def make_deployment(
         ConfigError: a bad argument or an openssl failure.
 
     """
-    if not ground or any(c in ground for c in "/ \t[]"):
-        raise ConfigError(f"ground address {ground!r} must be a host name or an IP address")
+    check_address(ground, "ground address")
+    for host in extra_hosts:
+        check_address(host, "--host")
     if not 0 < port < 65536 or not 0 < air_port < 65536:
         raise ConfigError(f"ports {port}, {air_port} must be in 1..65535")
     root = Path(out).resolve()
@@ -380,6 +424,7 @@ def make_deployment(
     )
     issue(root, GROUND, days=days)
     issue(root, air_name(uav), days=days)
+    seal_key(root, uav)
     host = f"[{ground}]" if ":" in ground else ground  # an IPv6 address in an endpoint
     values = {
         "certs": str(root),

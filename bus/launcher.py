@@ -3,7 +3,10 @@
 A layout (compose/<name>.yml) lists processes — each one `atr service NAME` with arguments — the Zenoh config
 they share, the variables substituted into both (`${uav}`, `${hub}`, `${out}`, ...), and the edges that wire
 outputs to inputs (checked against the service manifests by the tests). The supervisor restarts a process
-that dies, with exponential back-off, and stops everything on request (SIGTERM, then SIGKILL after a grace).
+that fails (a non-zero exit), with exponential back-off; a process that exits 0 is done (a source that finished
+its flight) and stays down. It stops everything on request (SIGTERM to each process group, then SIGKILL after a
+grace); `interrupt_on_signals` and `on_stop_signals` make SIGTERM, SIGINT and SIGHUP to a launcher stop its
+layout instead of orphaning it.
 """
 
 from __future__ import annotations
@@ -16,6 +19,8 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -30,6 +35,8 @@ log = logging.getLogger("atr")
 
 REPO = Path(__file__).resolve().parents[1]
 COMPOSE_DIR = REPO / "compose"
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)
+"""The signals that stop a launcher and, through it, its whole layout (a closed terminal sends SIGHUP)."""
 
 
 @dataclass(frozen=True)
@@ -72,6 +79,28 @@ def layout_path(name_or_path: str | Path) -> Path:
         known = sorted(p.stem for p in COMPOSE_DIR.glob("*.yml"))
         raise ConfigError(f"layout {name_or_path!r} not found; expected a file or one of {known}")
     return candidate
+
+
+PATH_VARIABLES = ("out", "air_out", "deploy")
+"""Layout variables that name files or folders: a user's relative value is resolved against the user's working
+directory (`user_variables`), since the processes run from the repository."""
+
+
+def user_variables(variables: dict[str, str], cwd: Path | None = None) -> dict[str, str]:
+    """A user's layout variables with the paths among them (`PATH_VARIABLES`) made absolute against `cwd`.
+
+    Raises:
+        ConfigError: a path variable is empty.
+
+    """
+    base = Path.cwd() if cwd is None else cwd
+    out = dict(variables)
+    for name in PATH_VARIABLES:
+        if name in out:
+            if not out[name]:
+                raise ConfigError(f"layout variable {name} is empty; expected a path")
+            out[name] = str(base / Path(out[name]).expanduser())
+    return out
 
 
 def _substitute(text: str, variables: dict[str, str]) -> str:
@@ -133,6 +162,7 @@ class _Running:
     restarts: int = 0
     next_start: float | None = None
     failures: list[int] = field(default_factory=list)
+    done: bool = False  # exited 0: finished its work, not restarted
 
 
 class Supervisor:
@@ -147,9 +177,11 @@ class Supervisor:
         skip_roles: tuple[str, ...] = (),
         log_dir: Path | None = None,
         max_backoff_s: float = 30.0,
+        input_recording: Path | None = None,
     ) -> None:
         self.layout = layout
         self.overrides = list(overrides)
+        self.input_recording = input_recording
         self.specs = [
             p
             for p in layout.processes
@@ -167,9 +199,13 @@ class Supervisor:
         command = [sys.executable, "-m", "cli.main", "service", spec.service, *spec.args]
         if spec.role != "hub":
             command += ["--uav", self.layout.variables.get("uav", "uav1")]
-            if spec.role == "pipeline" or spec.role == "source":
-                for override in self.overrides:
+            if spec.role in ("pipeline", "source", "recorder"):
+                for override in self.overrides:  # the recorder keeps them in its provenance record
                     command += ["--set", override]
+            if spec.role == "recorder":
+                command += ["--layout", self.layout.name]
+                if self.input_recording is not None:
+                    command += ["--input", str(self.input_recording)]
         return command
 
     def _env(self, spec: ProcessSpec) -> dict[str, str]:
@@ -225,9 +261,14 @@ class Supervisor:
                 return
             for name, proc in self.running.items():
                 code = proc.popen.poll()
-                if code is None:
+                if code is None or proc.done:
                     continue
-                if proc.next_start is None:
+                if code == 0 and proc.next_start is None:
+                    proc.done = (
+                        True  # e.g. a source that finished its flight: flying again is wrong
+                    )
+                    log.info("%s finished (exit 0); not restarted", name)
+                elif proc.next_start is None:
                     proc.failures.append(code)
                     backoff = min(self.max_backoff_s, 0.5 * 2**proc.restarts)
                     if now - proc.started > 60:
@@ -244,7 +285,9 @@ class Supervisor:
         return {name: p.failures for name, p in self.running.items() if p.failures}
 
     def stop(self, grace_s: float = 10.0) -> dict[str, int | None]:
-        """SIGTERM every process (the recorder and hub last), wait, SIGKILL what remains.
+        """SIGTERM every process group (the recorder and hub last), wait, SIGKILL what remains.
+
+        A second Ctrl-C or SIGTERM while it stops is ignored, so it cannot leave processes behind.
 
         Returns:
             The exit code of each process.
@@ -252,10 +295,17 @@ class Supervisor:
         """
         with self._lock:
             self._stopping = True
+        with _signals_ignored():
+            return self._stop(grace_s)
+
+    def _stop(self, grace_s: float) -> dict[str, int | None]:
         for popen in self._once:
-            if popen.poll() is None:
-                popen.terminate()
+            _signal_group(popen, signal.SIGTERM)
+            try:
                 popen.wait(grace_s)
+            except subprocess.TimeoutExpired:
+                _signal_group(popen, signal.SIGKILL)
+                popen.wait()
         order = sorted(
             self.running.values(), key=lambda p: {"hub": 2, "recorder": 1}.get(p.spec.role, 0)
         )
@@ -263,20 +313,82 @@ class Supervisor:
         for group in (0, 1, 2):
             members = [p for p in order if {"hub": 2, "recorder": 1}.get(p.spec.role, 0) == group]
             for proc in members:
-                if proc.popen.poll() is None:
-                    proc.popen.send_signal(signal.SIGTERM)
+                _signal_group(proc.popen, signal.SIGTERM)
             deadline = time.monotonic() + grace_s
             for proc in members:
                 try:
                     proc.popen.wait(max(0.1, deadline - time.monotonic()))
                 except subprocess.TimeoutExpired:
                     log.warning("%s ignored SIGTERM; killing it", proc.spec.name)
-                    proc.popen.kill()
+                    _signal_group(proc.popen, signal.SIGKILL)
                     proc.popen.wait()
                 codes[proc.spec.name] = proc.popen.returncode
         for handle in self._logs:
             handle.close()
         return codes
+
+
+def _signal_group(popen: subprocess.Popen[bytes], signum: int) -> None:
+    """Signal a child's whole process group (it leads its own session), so nothing it started survives."""
+    if popen.poll() is not None:
+        return
+    try:
+        os.killpg(popen.pid, signum)
+    except ProcessLookupError:  # it exited between the poll and the signal
+        pass
+
+
+def _in_main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+@contextmanager
+def _signals_ignored() -> Iterator[None]:
+    """Ignore the stop signals inside (main thread only: elsewhere handlers cannot be installed)."""
+    if not _in_main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, signal.SIG_IGN) for sig in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _raise_interrupt(signum: int, _frame: object) -> None:
+    raise KeyboardInterrupt(f"stopped by {signal.Signals(signum).name}")
+
+
+@contextmanager
+def interrupt_on_signals() -> Iterator[None]:
+    """Inside, SIGTERM and SIGHUP raise KeyboardInterrupt as Ctrl-C (SIGINT) does.
+
+    A launcher that runs a layout inside `try: ... finally: supervisor.stop()` then stops its layout on any
+    of them instead of dying and orphaning its services. Main thread only; elsewhere it does nothing.
+    """
+    if not _in_main_thread():
+        yield
+        return
+    previous = {
+        sig: signal.signal(sig, _raise_interrupt) for sig in (signal.SIGTERM, signal.SIGHUP)
+    }
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def on_stop_signals(stop: Callable[[], None]) -> None:
+    """Call `stop` on SIGTERM, SIGINT and SIGHUP (main thread only).
+
+    It runs inside the signal handler, so it must take no lock (`bus.stopping.StopRequest.set` takes none).
+    """
+    if not _in_main_thread():
+        return
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, lambda *_: stop())
 
 
 def wait_until_ready(
@@ -296,7 +408,7 @@ def wait_until_ready(
     lock = threading.Lock()
 
     def on_status(sample: zenoh.Sample) -> None:
-        from bus import codec  # noqa: PLC0415 - keeps this module light for `atr up --help`
+        from bus import codec  # keeps this module light for `atr up --help`
 
         try:
             status = codec.unpack(sample.payload.to_bytes())
@@ -326,7 +438,7 @@ def wait_until_ready(
 
 def observer_session(layout: Layout) -> zenoh.Session:
     """A session of this process (the launcher itself) joined to the layout's hub."""
-    from bus.session import default_config  # noqa: PLC0415
+    from bus.session import default_config
 
     hub = layout.variables.get("hub")
     return open_session(default_config("peer", [hub] if hub else None, ["tcp/127.0.0.1:0"]))

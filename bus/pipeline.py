@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import zenoh
 
+from atr.errors import InputError
 from bus.launcher import Supervisor, load_layout, observer_session, wait_until_ready
 from bus.replayer import Replayer
 
@@ -26,6 +27,9 @@ class RunResult:
     log_dir: Path = Path()
 
 
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
 def free_hub_endpoint() -> str:
     """A loopback endpoint on a free port, so runs never collide with each other or a live layout."""
     with socket.socket() as s:
@@ -33,9 +37,78 @@ def free_hub_endpoint() -> str:
         return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
+def check_input(path: Path) -> Path:
+    """The absolute path of an existing, readable MCAP recording.
+
+    Raises:
+        InputError: it does not exist, is a directory, cannot be read, or is not an MCAP file.
+
+    """
+    path = Path(path).absolute()
+    if path.is_dir():
+        raise InputError(f"input {path} is a directory; expected an MCAP recording file")
+    if not path.is_file():
+        raise InputError(f"input {path}: no such file")
+    try:
+        with path.open("rb") as stream:
+            magic = stream.read(len(MCAP_MAGIC))
+    except OSError as exc:
+        raise InputError(f"input {path} cannot be read: {exc.strerror}") from exc
+    if magic != MCAP_MAGIC:
+        raise InputError(
+            f"input {path} is not an MCAP recording (it does not start with MCAP's magic)"
+        )
+    return path
+
+
+def check_output(path: Path) -> Path:
+    """The absolute path of an output file, resolved against the caller's working directory.
+
+    The services run from the repository, so a relative path handed to them would land there.
+
+    Raises:
+        InputError: it is a directory, its folder is a file, or it exists (a recording is never
+            overwritten, and a recorder that finds its file continues it in a new segment).
+
+    """
+    path = Path(path).absolute()
+    if path.is_file():
+        raise InputError(
+            f"output {path} exists; a recording is never overwritten: choose another path"
+        )
+    if path.is_dir():
+        raise InputError(
+            f"output {path} is a directory; expected a file path such as {path}/flight.mcap"
+        )
+    blocking = next((p for p in path.parents if p.exists()), None)
+    if blocking is not None and not blocking.is_dir():
+        raise InputError(f"output {path}: {blocking} is a file, not a folder")
+    return path
+
+
+def check_run(layout: str, overrides: list[str]) -> None:
+    """Check a run's layout and configuration overrides before any process starts.
+
+    A bad `--set` would otherwise crash-loop every service until the ready timeout.
+
+    Raises:
+        ConfigError: the layout cannot be loaded, or an override names an unknown field or a bad value.
+
+    """
+    from atr.config import load_config
+
+    load_layout(layout)
+    load_config(None, list(overrides))
+
+
 @contextmanager
 def _running(
-    layout_name: str, out: Path, overrides: list[str], ready_timeout_s: float, result: RunResult
+    layout_name: str,
+    out: Path,
+    overrides: list[str],
+    ready_timeout_s: float,
+    result: RunResult,
+    input_recording: Path | None = None,
 ) -> Iterator[tuple[Supervisor, zenoh.Session, str]]:
     """The layout (without its source) up and ready, an observer session on its bus, and the vehicle id.
 
@@ -43,10 +116,14 @@ def _running(
     """
     layout = load_layout(layout_name, {"out": str(out), "hub": free_hub_endpoint()})
     supervisor = Supervisor(
-        layout, overrides=overrides, skip_roles=("source",), log_dir=result.log_dir
+        layout,
+        overrides=overrides,
+        skip_roles=("source",),
+        log_dir=result.log_dir,
+        input_recording=input_recording,
     )
-    supervisor.start()
     try:
+        supervisor.start()
         session = observer_session(layout)
         try:
             uav = layout.variables.get("uav", "uav1")
@@ -70,11 +147,27 @@ def run_recording(
     answer_timeout_s: float = 600.0,
     ready_timeout_s: float = 900.0,
 ) -> RunResult:
-    """Replay `input_path` through `layout` in lock-step, recording everything into `out`."""
+    """Replay `input_path` through `layout` in lock-step, recording everything into `out`.
+
+    Everything is checked before anything starts (`check_run`); relative paths are the caller's, not the
+    services' (they run from the repository).
+
+    Raises:
+        ConfigError: a bad override or layout; InputError: a bad input or output path.
+
+    """
+    input_path = check_input(input_path)
+    out = check_output(out)
+    check_run(layout, overrides)
     result = RunResult(log_dir=out.with_suffix(".logs"))
-    with _running(layout, out, list(overrides), ready_timeout_s, result) as (_, session, uav):
+    running = _running(layout, out, list(overrides), ready_timeout_s, result, input_path)
+    with running as (sup, session, uav):
+        # with a tracker the last answer to a frame is its Tracks: wait for it, or the run could end
+        # before the last scene's Tracks is recorded
+        tracked = any(p.service == "tracker" for p in sup.layout.processes)
+        answer_key = "atr/{uav}/tracks" if tracked else "atr/{uav}/detections"
         with Replayer(input_path, session, uav=uav) as replayer:
-            stats = replayer.lock_step(answer_timeout_s=answer_timeout_s)
+            stats = replayer.lock_step(answer_key, answer_timeout_s=answer_timeout_s)
         result.frames, result.timeouts = stats.frames, stats.timeouts
     return result
 
@@ -92,7 +185,13 @@ def fly_layout(
     """Start the whole layout, its sensor source flying with `source_args`, until the source is done.
 
     `on_session(session)` is called with an observer session before the flight starts (progress display).
+
+    Raises:
+        ConfigError: a bad override or layout; InputError: a bad output path (checked before anything starts).
+
     """
+    out = check_output(out)
+    check_run(layout, overrides)
     result = RunResult(log_dir=out.with_suffix(".logs"))
     with _running(layout, out, list(overrides), ready_timeout_s, result) as (
         supervisor,
@@ -126,7 +225,7 @@ class FlightWatch:
         uav: str,
         on_scene: Callable[[dict | None, dict, dict | None], None],
     ) -> None:
-        from bus import codec, keys  # noqa: PLC0415
+        from bus import codec, keys
 
         self._truth: dict[int, dict] = {}
         self._camera_pose: dict[int, dict] = {}
@@ -163,40 +262,32 @@ def flight_scenes(path: Path, uav: str = "uav1") -> list[tuple[dict | None, dict
 
     The camera pose is the frame's first CameraPose message (None when the recording has none).
     """
-    from mcap.reader import make_reader  # noqa: PLC0415
-
-    from bus import codec, keys  # noqa: PLC0415
+    from bus import codec, keys
+    from bus.mcap_tools import iter_messages
 
     truth: dict[int, dict] = {}
     camera_pose: dict[int, dict] = {}
     detections = []
-    with open(path, "rb") as stream:
-        for _, channel, message in make_reader(stream).iter_messages(
-            topics=[keys.truth(uav), keys.camera_pose(uav), keys.detections(uav)],
-            log_time_order=False,
-        ):
-            data = codec.unpack(message.data)
-            if channel.topic == keys.truth(uav):
-                truth[data["stamp_ns"]] = data
-            elif channel.topic == keys.camera_pose(uav):
-                camera_pose.setdefault(data["stamp_ns"], data)
-            else:
-                detections.append(data)
+    wanted = [keys.truth(uav), keys.camera_pose(uav), keys.detections(uav)]
+    for topic, message in iter_messages(path, topics=wanted):  # every segment of the recording
+        data = codec.unpack(message.data)
+        if topic == keys.truth(uav):
+            truth[data["stamp_ns"]] = data
+        elif topic == keys.camera_pose(uav):
+            camera_pose.setdefault(data["stamp_ns"], data)
+        else:
+            detections.append(data)
     return [(truth.get(d["stamp_ns"]), d, camera_pose.get(d["stamp_ns"])) for d in detections]
 
 
 def flight_clouds(path: Path, uav: str = "uav1") -> dict[int, np.ndarray]:
     """The SfM cloud of each frame of a recording, keyed by its stamp_ns: (N, 3) float32 world positions."""
-    from mcap.reader import make_reader  # noqa: PLC0415
-
-    from bus import codec, keys  # noqa: PLC0415
-    from bus.clouds import cloud_points  # noqa: PLC0415
+    from bus import codec, keys
+    from bus.clouds import cloud_points
+    from bus.mcap_tools import iter_messages
 
     clouds: dict[int, np.ndarray] = {}
-    with open(path, "rb") as stream:
-        for _, _, message in make_reader(stream).iter_messages(
-            topics=[keys.sfm_cloud(uav)], log_time_order=False
-        ):
-            data = codec.unpack(message.data)
-            clouds[data["stamp_ns"]] = cloud_points(data)
+    for _, message in iter_messages(path, topics=[keys.sfm_cloud(uav)]):
+        data = codec.unpack(message.data)
+        clouds[data["stamp_ns"]] = cloud_points(data)
     return clouds

@@ -51,7 +51,7 @@ def service_arguments(name: str, description: str | None) -> argparse.ArgumentPa
 
 def effective_config(args: argparse.Namespace) -> AtrConfig:
     """The config a service runs with: defaults, then --config, then --set."""
-    from atr.config import load_config  # noqa: PLC0415 - the algorithms' configs import Open3D
+    from atr.config import load_config  # the algorithms' configs import Open3D
 
     return load_config(args.config, args.overrides)
 

@@ -48,8 +48,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Write the deployment folder and list what it holds."""
-    from bus.certs import make_deployment  # noqa: PLC0415
+    from atr.errors import ConfigError
+    from bus.certs import make_deployment
 
+    if args.out.exists() and not args.out.is_dir():
+        raise ConfigError(f"--out {args.out} is a file; expected a folder to write (created)")
     deployment = make_deployment(
         args.out,
         ground=args.ground,

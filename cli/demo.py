@@ -24,7 +24,7 @@ DEMO_OBLIQUITY_DEG = 30.0
 
 def demo_run(scenario: int) -> int:
     """The scenario's run at ``DEMO_OBLIQUITY_DEG`` (scenario 1 and 2: run 3; scenario 3: its only run)."""
-    from atr.sim.scenarios import TABLE_II  # noqa: PLC0415
+    from atr.sim.scenarios import TABLE_II
 
     # an unknown scenario gets run 1: the sensor source then names the bad scenario
     obliquities = TABLE_II[scenario][1] if scenario in TABLE_II else ()
@@ -49,12 +49,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Fly, print per-scene results and the F1; 0 when every process stayed up."""
-    from bus.pipeline import fly_layout  # noqa: PLC0415
-    from cli.flight_report import FlightPrinter, f1_line, summarise  # noqa: PLC0415
+    from bus.launcher import interrupt_on_signals
+    from bus.pipeline import check_output, fly_layout
+    from cli.flight_report import FlightPrinter, f1_line, summarise
 
     if args.run is None:
         args.run = demo_run(args.scenario)
-    out = args.out or Path("runs") / time.strftime("demo-%Y%m%d-%H%M%S") / "flight.mcap"
+    # a relative path is the user's, not the services' folder (fly_layout checks the rest first)
+    out = check_output(
+        args.out or Path("runs") / time.strftime("demo-%Y%m%d-%H%M%S") / "flight.mcap"
+    )
     out.parent.mkdir(parents=True, exist_ok=True)
     print(
         f"demo: scenario {args.scenario} run {args.run}, {args.frames} frames; starting the services "
@@ -62,27 +66,28 @@ def run(args: argparse.Namespace) -> int:
         flush=True,
     )
     printer = FlightPrinter()
-    result = fly_layout(
-        out,
-        overrides=args.overrides,
-        source_args=[
-            "--scenario",
-            str(args.scenario),
-            "--run",
-            str(args.run),
-            "--frames",
-            str(args.frames),
-            "--seed",
-            str(args.seed),
-        ],
-        on_session=printer.attach,
-    )
+    with interrupt_on_signals():  # SIGTERM/SIGHUP stop the layout as Ctrl-C does
+        result = fly_layout(
+            out,
+            overrides=args.overrides,
+            source_args=[
+                "--scenario",
+                str(args.scenario),
+                "--run",
+                str(args.run),
+                "--frames",
+                str(args.frames),
+                "--seed",
+                str(args.seed),
+            ],
+            on_session=printer.attach,
+        )
     printer.detach()
     counts = summarise(out)
     if counts is not None:
         print("\n" + f1_line(counts))
     print(f"recording: {out}")
-    from bus.foxglove_export import export_foxglove  # noqa: PLC0415
+    from bus.foxglove_export import export_foxglove
 
     foxglove_path = out.with_name(out.stem + "-foxglove.mcap")
     export_foxglove(out, foxglove_path)

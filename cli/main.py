@@ -1,7 +1,8 @@
 """The `atr` command: a thin shell that maps sub-commands onto the modules that implement them.
 
 Each sub-command lives in `cli/<module>.py` with `add_arguments(parser)` and `run(args) -> int`.
-Heavy imports stay inside `run`, so `atr --help` is instant.
+Heavy imports stay inside `run`, and only the chosen sub-command's module is imported, so `atr --help` is
+instant and a command pays only for its own imports.
 
 Examples:
     atr demo                                   # simulated flight end to end over the bus
@@ -12,12 +13,19 @@ Examples:
 
 from __future__ import annotations
 
-import argparse
-import importlib
-import sys
-from importlib.metadata import PackageNotFoundError, version
+import os
 
-from atr.errors import AtrError
+# What `./dev` sets, for an `atr` installed with pip too; before numpy and numba are imported, and never over
+# a user's own setting. Debian's TBB is too old for numba (a warning on every run): numba's OpenMP layer instead.
+# One BLAS thread: the matcher's small products ran up to 10x slower with BLAS threads fighting the services'.
+os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import importlib  # noqa: E402
+import sys  # noqa: E402
+
+from atr.errors import AtrError  # noqa: E402
 
 # name -> (module under cli/, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -30,6 +38,11 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "up": ("up", "start a deployment layout from compose/"),
     "run": ("run", "replay a recording through a layout in lock-step and record the result"),
     "mcap": ("mcap", "inspect, check and export recordings"),
+    "diff": (
+        "diff",
+        "compare the data messages of two recordings (exit 0 same, 1 differ, 2 error)",
+    ),
+    "regress": ("regress", "replay a corpus of recordings and diff each against its baseline"),
     "service": ("service", "run one service by name (what the layouts start)"),
     "eval": ("evaluate", "run the paper's experiments and score them"),
     "report": ("report", "write the evaluation report to docs/evaluation"),
@@ -41,21 +54,42 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-def _version() -> str:
-    try:
-        return version("passive-atr")
-    except PackageNotFoundError:
-        return "unknown"
+class _VersionAction(argparse.Action):
+    """`--version`, reading the installed package's metadata only when asked (it costs start-up time)."""
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: object) -> None:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            found = version("passive-atr")
+        except PackageNotFoundError:
+            found = "unknown"
+        parser.exit(message=f"{parser.prog} {found}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Build the argument parser with every sub-command whose module exists."""
+def _chosen(argv: list[str]) -> str | None:
+    """The sub-command named on the command line (the first word that is not an option), if any."""
+    return next((word for word in argv if not word.startswith("-")), None)
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """Build the argument parser of every sub-command.
+
+    Args:
+        only: the sub-command about to run: only its module is imported and given its arguments (the
+            others are listed with their one-line help), so a command never pays for another's imports;
+            "" imports none (top-level help). None imports and builds every sub-command.
+
+    """
     parser = argparse.ArgumentParser(
         prog="atr", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action=_VersionAction, nargs=0, help="print the version")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (module_name, help_text) in COMMANDS.items():
+        if only is not None and name != only:
+            sub.add_parser(name, help=help_text)
+            continue
         try:
             module = importlib.import_module(f"cli.{module_name}")
         except ModuleNotFoundError as exc:
@@ -75,7 +109,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `atr` console script; returns the process exit code."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    chosen = _chosen(argv)
+    parser = build_parser(chosen if chosen in COMMANDS else "")
     args = parser.parse_args(argv)
     if not hasattr(args, "_run"):
         parser.print_help()

@@ -27,6 +27,8 @@ AUTO_SPACING_FACTOR = 6.0
 the model's mean spacing; 6 x 1.5 mm ~ 1 cm for its milk carton)."""
 VEHICLE_EXTENT_M = 3.0
 """--resolution auto keeps the paper's 0.3 m for models at least this large (vehicle-sized)."""
+MAX_RESOLUTION_M = 100.0
+"""A larger --resolution leaves no vehicle more than a point: refused as a mistake."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -83,6 +85,10 @@ def _resolution(arg: str, model_points, is_mesh: bool) -> float:
             value = float(arg)
         except ValueError as exc:
             raise ConfigError(f"--resolution {arg!r} must be a number of metres or 'auto'") from exc
+        if not 0 < value <= MAX_RESOLUTION_M:
+            raise ConfigError(
+                f"--resolution {arg!r} must be > 0 and <= {MAX_RESOLUTION_M:g} metres, or 'auto'"
+            )
         return value
     pts = model_points[np.isfinite(model_points).all(axis=1)]
     extent = float(np.linalg.norm(pts.max(0) - pts.min(0))) if len(pts) else 0.0
@@ -99,6 +105,22 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from atr.errors import InputError
+    from atr.io.geometry import MAX_ABS_COORDINATE_M, load_geometry
+
+    # the files and arguments first: a bad one is refused before the matcher's imports (a second or two)
+    model = load_geometry(args.model)
+    scene = load_geometry(args.scene)
+    if len(model.points) == 0:
+        raise InputError(f"{args.model}: the model holds no point")
+    if args.viewpoint is not None and not all(
+        abs(v) <= MAX_ABS_COORDINATE_M for v in args.viewpoint
+    ):
+        raise InputError(
+            f"--viewpoint {args.viewpoint} must be finite and within ±{MAX_ABS_COORDINATE_M:g} m"
+        )
+    if args.max_keypoints is not None and args.max_keypoints < 1:
+        raise InputError(f"--max-keypoints {args.max_keypoints} must be >= 1")
+
     from atr.recognition import (
         RecognitionConfig,
         build_template,
@@ -106,12 +128,7 @@ def run(args: argparse.Namespace) -> int:
         sample_mesh_surface,
         template_from_points,
     )
-    from atr.recognition.io import load_geometry
 
-    model = load_geometry(args.model)
-    scene = load_geometry(args.scene)
-    if len(model.points) == 0:
-        raise InputError(f"{args.model}: the model holds no point")
     resolution = _resolution(args.resolution, model.points, model.is_mesh)
     config = RecognitionConfig(resolution_m=resolution, descriptor=args.descriptor)
     if args.max_keypoints is not None:

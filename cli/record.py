@@ -1,6 +1,6 @@
 """Record every message on the bus (`atr/**`, `sim/**`) into one MCAP file until Ctrl-C or SIGTERM.
 
-The file follows ARCHITECTURE.md §6 (msgpack messages, JSON Schema channels, zstd chunks, log time =
+The file follows docs/recording.md (msgpack messages, JSON Schema channels, zstd chunks, log time =
 receive time); see docs/recording.md. A chunk is written at least every `--flush-interval` seconds,
 so a crash loses at most that much (`atr mcap recover` repairs a file cut short). An existing file is
 never overwritten: recording again to the same `--out` writes the next segment (`flight.1.mcap`, ...), and

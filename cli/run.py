@@ -3,7 +3,7 @@
 It starts the layout without its sensor source, waits until every service is ready, replays INPUT's sensor
 messages in lock-step (the next frame only after the pipeline has answered the last), records all traffic to
 OUTPUT, stops the layout, and exits non-zero naming any process that failed. The same recording and config
-give byte-identical data messages (ARCHITECTURE.md §5). A simulated flight's recording carries its truth; the
+give byte-identical data messages (docs/architecture.md). A simulated flight's recording carries its truth; the
 run's F1 (§III-C, judged as `atr eval` judges it) is printed then.
 
 Examples:
@@ -40,17 +40,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the replay; 0 when every process stayed up and every frame was answered."""
-    from bus.pipeline import run_recording  # noqa: PLC0415
-    from cli.flight_report import f1_line, summarise  # noqa: PLC0415
+    from atr.errors import ConfigError
+    from bus.launcher import interrupt_on_signals
+    from bus.pipeline import check_output, run_recording
+    from cli.flight_report import f1_line, summarise
 
-    result = run_recording(
-        args.input,
-        args.out,
-        layout=args.layout,
-        overrides=args.overrides,
-        answer_timeout_s=args.answer_timeout,
-        ready_timeout_s=args.ready_timeout,
-    )
+    # run_recording checks the input, the layout and the overrides before anything starts
+    for flag, value in (
+        ("--answer-timeout", args.answer_timeout),
+        ("--ready-timeout", args.ready_timeout),
+    ):
+        if not value > 0:
+            raise ConfigError(f"{flag} {value} must be > 0 seconds")
+    args.out = check_output(args.out)  # the user's working directory, not the services' folder
+    with interrupt_on_signals():  # SIGTERM/SIGHUP stop the layout as Ctrl-C does
+        result = run_recording(
+            args.input,
+            args.out,
+            layout=args.layout,
+            overrides=args.overrides,
+            answer_timeout_s=args.answer_timeout,
+            ready_timeout_s=args.ready_timeout,
+        )
     print(f"replayed {result.frames} frames ({result.timeouts} unanswered) into {args.out}")
     counts = summarise(args.out) if result.frames and not result.failures else None
     if counts is not None:  # a simulated flight: judged against its truth as `atr eval` judges it

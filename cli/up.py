@@ -1,7 +1,10 @@
 """Start a deployment layout from compose/ and keep it running until Ctrl-C or SIGTERM.
 
-A process that dies is restarted with exponential back-off; Ctrl-C stops everything (the recorder last, so
-its file closes cleanly).
+A process that fails is restarted with exponential back-off; one that exits 0 has finished (a source at the
+end of its flight) and is not. Ctrl-C, SIGTERM or SIGHUP stops everything (the recorder last, so its file
+closes cleanly). Relative paths in --var out=... and --var deploy=... are the caller's working directory's.
+The recording goes to runs/up-<time>/flight.mcap unless --var out=... names another file (never an existing
+one: a recording is never overwritten).
 
 Examples:
     atr up                                    # compose/local.yml
@@ -13,6 +16,8 @@ Examples:
 from __future__ import annotations
 
 import argparse
+import time
+from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,7 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def parse_vars(pairs: list[str]) -> dict[str, str]:
     """NAME=VALUE strings as a dict."""
-    from atr.errors import ConfigError  # noqa: PLC0415
+    from atr.errors import ConfigError
 
     out = {}
     for pair in pairs:
@@ -51,15 +56,34 @@ def parse_vars(pairs: list[str]) -> dict[str, str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the layout until stopped."""
-    import logging  # noqa: PLC0415
+    """Run the layout until stopped (SIGTERM, SIGINT or SIGHUP stop every process it started)."""
+    import logging
 
-    from bus.launcher import Supervisor, load_layout  # noqa: PLC0415
-    from bus.node import setup_logging  # noqa: PLC0415
-    from bus.stopping import StopRequest, stop_on_signals  # noqa: PLC0415
+    from atr.config import load_config
+    from atr.errors import ConfigError
+    from bus.launcher import Supervisor, load_layout, on_stop_signals, user_variables
+    from bus.node import setup_logging
+    from bus.pipeline import check_output
+    from bus.stopping import StopRequest
 
+    # everything is checked before a process starts: a bad --set would crash-loop every service
+    variables = parse_vars(args.var)
+    # a fresh recording per `atr up`: a recorder that finds its file continues it as a segment, which
+    # is right after a crash and wrong for a new flight
+    folder = time.strftime("runs/up-%Y%m%d-%H%M%S")
+    variables.setdefault("out", f"{folder}/flight.mcap")
+    variables.setdefault("air_out", f"{folder}/air.mcap")  # the split layout's aircraft recording
+    variables = user_variables(variables)
+    check_output(Path(variables["out"]))
+    layout = load_layout(args.layout, variables)
+    load_config(None, args.overrides)
+    hosts = {p.host for p in layout.processes}
+    unknown = sorted(set(args.host or ()) - hosts)
+    if unknown:
+        raise ConfigError(
+            f"--host {unknown} not in layout {layout.name!r}; its hosts: {sorted(hosts)}"
+        )
     setup_logging("up")
-    layout = load_layout(args.layout, parse_vars(args.var))
     supervisor = Supervisor(
         layout,
         overrides=args.overrides,
@@ -67,12 +91,14 @@ def run(args: argparse.Namespace) -> int:
         skip_roles=("source",) if args.no_source else (),
     )
     stop = StopRequest()
-    stop_on_signals(stop.set)
-    supervisor.start()
-    logging.getLogger("atr").info(
-        "layout %s up: %s", layout.name, [p.name for p in supervisor.specs]
-    )
-    while not stop.wait(0.5):
-        supervisor.poll()
-    supervisor.stop()
+    on_stop_signals(stop.set)
+    try:
+        supervisor.start()
+        logging.getLogger("atr").info(
+            "layout %s up: %s", layout.name, [p.name for p in supervisor.specs]
+        )
+        while not stop.wait(0.5):
+            supervisor.poll()
+    finally:
+        supervisor.stop()
     return 0

@@ -81,3 +81,50 @@ def test_bad_files_exit_1(tmp_path, capsys):
     assert "columns" in capsys.readouterr().err
     assert main(["recognize", "--model", str(tmp_path / "m.xyz"), "--scene", str(tmp_path / "m.xyz"),
                  "--resolution", "abc"]) == 1  # fmt: skip
+
+
+def _atr(*args: str, cwd: Path):
+    import os
+    import subprocess
+    import sys
+
+    repo = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, PYTHONPATH=str(repo) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    return subprocess.run(
+        [sys.executable, "-m", "cli.main", *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+
+
+def test_a_scene_read_only_in_part_a_directory_or_an_absurd_value_is_refused(tmp_path):
+    rng = np.random.default_rng(0)
+    np.savetxt(tmp_path / "model.xyz", rng.uniform(0, 3, (300, 3)))
+    header = "ply\nformat ascii 1.0\nelement vertex 3\n" + "".join(
+        f"property float {axis}\n" for axis in "xyz"
+    )
+    (tmp_path / "inf.ply").write_text(header + "end_header\n0 0 0\n1 inf 0\n0 1 0\n")
+    (tmp_path / "random.ply").write_bytes(rng.bytes(2048))
+    (tmp_path / "header.ply").write_text(header.replace("float y", "flaot y") + "end_header\n")
+    (tmp_path / "folder").mkdir()
+    far = rng.uniform(0, 3, (300, 3))
+    far[7, 2] = 1e30
+    np.savetxt(tmp_path / "far.xyz", far)
+    cases = {
+        "inf.ply": "positions must be finite",
+        "random.ply": "not a PLY file",
+        "header.ply": "'property flaot y' is malformed",
+        "folder": "folder is a directory",
+        "far.xyz": "point 7 has z = 1e+30",
+    }
+    for scene, reason in cases.items():
+        done = _atr("recognize", "--model", "model.xyz", "--scene", scene, cwd=tmp_path)
+        assert done.returncode == 1, (scene, done.stdout, done.stderr)
+        assert "Traceback" not in done.stderr
+        assert scene in done.stderr and reason in done.stderr, done.stderr
+    done = _atr("recognize", "--model", "model.xyz", "--scene", "model.xyz", "--viewpoint",
+                "0", "1e30", "0", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 1 and "--viewpoint" in done.stderr and "Traceback" not in done.stderr
