@@ -11,7 +11,15 @@ A service is a loop over `node.events()`:
   one input at a time, in arrival order.
 - A message that is not msgpack, breaks its schema, or makes the computation raise becomes an ErrorReport on
   `atr/{uav}/{service}/errors` (and the log), is counted, and the loop goes on with the next input.
-- A gap in a publisher's sequence numbers is logged, counted and reported.
+- A gap in a publisher's sequence numbers (an input that never arrived) is counted (`gaps`) and reported on
+  the errors key; an input rejected on arrival is no gap.
+- With a `state_dir`, the input in hand is journalled until the service asks for the next one. A process
+  restarted after a kill finds the journal: with `replay_lost` it handles that input again first (the pose
+  integrator: small batches, state checkpointed), otherwise it reports it as lost (an ErrorReport with the
+  input's stamp: the frame is answered and lock-step moves on). `save_state`/`load_state` keep a service's
+  own checkpoint there (written atomically); a clean stop removes both.
+- `republish(key, stamp_ns)` puts a service's last message on a key again, the same bytes and attachment:
+  its answer to an input a lock-step driver sent again after a restart (bus/answers.py).
 - SIGTERM / SIGINT end `events()`; the context manager closes the session.
 """
 
@@ -21,12 +29,14 @@ import logging
 import os
 import queue
 import socket
+import tempfile
 import threading
 import time
 import traceback
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import zenoh
@@ -79,6 +89,17 @@ class Counters:
     handled_by_key: dict[str, int] = field(default_factory=dict)
 
 
+def default_state_dir() -> Path:
+    """Where services keep checkpoints unless told: ATR_STATE_DIR, else a folder of the system's temp
+    directory named after the parent process (the launcher that restarts them), so the layouts that run
+    at the same time never share one.
+    """
+    configured = os.environ.get("ATR_STATE_DIR")
+    if configured:
+        return Path(configured)
+    return Path(tempfile.gettempdir()) / f"atr-state-{os.getppid()}"
+
+
 def setup_logging(service: str) -> None:
     """Log to stderr with the service name; level from ATR_LOG_LEVEL (default INFO)."""
     logging.basicConfig(
@@ -100,6 +121,8 @@ class Node:
         heartbeat_s: float = 1.0,
         max_queue: int = 10_000,
         session: zenoh.Session | None = None,
+        state_dir: str | Path | None = None,
+        replay_lost: bool = False,
     ) -> None:
         self.service = service
         self.uav = uav
@@ -115,11 +138,25 @@ class Node:
         self._dropped_reported = 0
         self._started = time.monotonic()
         self._owns_session = session is None
+        self._last_put: dict[
+            str, tuple[int, bytes, bytes]
+        ] = {}  # key -> (stamp, payload, attachment)
+        self._state_dir = Path(state_dir) if state_dir is not None else None
+        self._lost: _Raw | None = None
+        if self._state_dir is not None:
+            self._state_dir.mkdir(parents=True, exist_ok=True)
+            lost = self._read_journal()
+            if lost is not None and replay_lost:
+                log.warning("handling again the input a killed process had in hand (%s)", lost.key)
+                self._queue.put(lost)  # before any live input
+            else:
+                self._lost = lost
         self.session = session if session is not None else open_session(zenoh_config)
         self._subscribers = [
             self.session.declare_subscriber(key, self._on_sample) for key in inputs
         ]
         self._queryables: list[Any] = []
+        self._alive: Any = None  # a liveliness token, from ready() on
         self._heartbeat_s = heartbeat_s
         self._state = "starting"
         self._heartbeat = threading.Thread(target=self._beat, name="heartbeat", daemon=True)
@@ -131,7 +168,11 @@ class Node:
         stop_on_signals(self.stop)
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        if exc_type is None and self._state_dir is not None:
+            # a clean stop: the next start is a new flight, not a recovery
+            for path in self._state_dir.glob(f"{self.service}-{self.uav}.*"):
+                path.unlink(missing_ok=True)
         self.close()
 
     def stop(self) -> None:
@@ -140,9 +181,28 @@ class Node:
         self._queue.put(None)
 
     def ready(self) -> None:
-        """Declare the service ready (status `running`): launchers wait for this before sending inputs."""
+        """Declare the service ready (status `running`): launchers wait for this before sending inputs.
+
+        An input a killed process of this service had in hand (and does not handle again) is reported
+        now, with its stamp: its frame is answered.
+        """
         self._state = "running"
+        if self._alive is None:
+            # gone within milliseconds of this process's death, whatever kills it (bus/answers.py)
+            self._alive = self.session.liveliness().declare_token(
+                f"atr/{self.uav}/{self.service}/alive"
+            )
         self._publish_status("running")
+        if self._lost is not None:
+            lost, self._lost = self._lost, None
+            seq, stamp, source = codec.decode_attachment(lost.attachment) or (None, None, None)
+            self.report_error(
+                lost.key,
+                BusError(f"lost: the {self.service} process was killed while handling it"),
+                input_seq=seq,
+                input_stamp_ns=stamp,
+                input_source=source,
+            )
 
     @property
     def stopping(self) -> bool:
@@ -159,6 +219,9 @@ class Node:
         for entity in self._subscribers + self._queryables:
             entity.undeclare()
         self._subscribers, self._queryables = [], []
+        if self._alive is not None:
+            self._alive.undeclare()
+            self._alive = None
         if self._owns_session:
             self.session.close()
 
@@ -195,7 +258,9 @@ class Node:
             self.counters.received += 1
             message = self._decode(raw)
             if message is not None:
+                self._journal(raw)
                 yield message
+                self._journal(None)  # the service asked for the next input: this one is done
 
     def _decode(self, raw: _Raw) -> Message | None:
         attachment = codec.decode_attachment(raw.attachment)
@@ -205,6 +270,8 @@ class Node:
             data = codec.decode(type_name, raw.payload)
         except (SchemaError, BusError) as exc:
             seq, stamp = (attachment[0], attachment[1]) if attachment else (None, None)
+            if source is not None and isinstance(seq, int):
+                self._check_gap(raw.key, source, seq)  # it arrived: the next one is no gap
             self._count_handled(raw.key)
             self.report_error(
                 raw.key, exc, input_seq=seq, input_stamp_ns=stamp, input_source=source
@@ -217,9 +284,76 @@ class Node:
     def _check_gap(self, key: str, source: str, seq: int) -> None:
         last = self._last_seq.get((key, source))
         self._last_seq[(key, source)] = seq
-        if last is not None and seq != last + 1:
-            self.counters.gaps += 1
-            log.warning("sequence gap on %s from %s: %d after %d", key, source, seq, last)
+        if last is None or seq == last + 1:
+            return
+        if seq <= last:  # sent again (a lock-step driver re-sends a frame after a restart)
+            log.info("sequence %d on %s from %s again after %d", seq, key, source, last)
+            return
+        self.counters.gaps += 1
+        # no stamp: the missing inputs' frames are unknown, so this answers no frame
+        self.report_error(
+            key,
+            BusError(f"sequence gap: inputs {last + 1}..{seq - 1} from {source} never arrived"),
+            input_seq=seq,
+            input_source=source,
+        )
+
+    # State -----------------------------------------------------------------------------------
+
+    def _path(self, suffix: str) -> Path:
+        assert self._state_dir is not None
+        return self._state_dir / f"{self.service}-{self.uav}.{suffix}"
+
+    def _write(self, path: Path, data: bytes) -> None:
+        # atomic: a kill leaves either the old file or the new one, never half of one
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+
+    def _journal(self, raw: _Raw | None) -> None:
+        if self._state_dir is None:
+            return
+        path = self._path("inflight")
+        if raw is None:
+            path.unlink(missing_ok=True)
+            return
+        self._write(
+            path, codec.pack({"key": raw.key, "payload": raw.payload, "attachment": raw.attachment})
+        )
+
+    def _read_journal(self) -> _Raw | None:
+        path = self._path("inflight")
+        if not path.is_file():
+            return None
+        try:
+            entry = codec.unpack(path.read_bytes())
+            raw = _Raw(str(entry["key"]), bytes(entry["payload"]), entry["attachment"])
+        except Exception as exc:  # noqa: BLE001 - a damaged journal is reported, not fatal
+            log.warning("journal %s unreadable (%s); ignored", path, exc)
+            raw = None
+        path.unlink(missing_ok=True)
+        return raw
+
+    def save_state(self, state: dict[str, Any]) -> None:
+        """Checkpoint the service's state (msgpack; numpy arrays allowed), atomically. No-op without a
+        state_dir.
+        """
+        if self._state_dir is not None:
+            self._write(self._path("state"), codec.pack(state))
+
+    def load_state(self) -> dict[str, Any] | None:
+        """The last checkpoint of a killed process of this service, or None.
+
+        Raises:
+            BusError: the checkpoint cannot be read.
+
+        """
+        if self._state_dir is None or not self._path("state").is_file():
+            return None
+        try:
+            return codec.unpack(self._path("state").read_bytes())
+        except Exception as exc:
+            raise BusError(f"checkpoint {self._path('state')} unreadable: {exc}") from exc
 
     def _report_drops(self) -> None:
         dropped = self.counters.dropped
@@ -286,7 +420,28 @@ class Node:
             )
             self.session.put(key, payload, attachment=attachment, congestion_control=congestion)
             self.counters.published += 1
+            if keys.is_data_key(key):
+                self._last_put[key] = (int(message["stamp_ns"]), payload, attachment)
         return message
+
+    def republish(self, key: str, stamp_ns: int) -> bool:
+        """Put the last message published on `key` again, the same bytes and attachment (seq and
+        stamp), if it is the one of stamp `stamp_ns`: a service's answer to an input sent again
+        after a restart downstream (bus/answers.py). Receivers see a repeated seq.
+
+        Returns:
+            Whether a message was put.
+
+        """
+        with self._publish_lock:
+            last = self._last_put.get(key)
+            if last is None or last[0] != int(stamp_ns):
+                return False
+            self.session.put(
+                key, last[1], attachment=last[2], congestion_control=zenoh.CongestionControl.BLOCK
+            )
+            self.counters.published += 1
+        return True
 
     def report_error(
         self,

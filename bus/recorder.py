@@ -1,5 +1,5 @@
 """The recorder: every message on `atr/**` and `sim/**`, as received, into one MCAP file
-(ARCHITECTURE.md §6).
+(docs/recording.md).
 
 - topic = key expression; message encoding `msgpack`; schema encoding `jsonschema` with the
   registry's schema (`bus.schemas.schema_bytes`); keys outside the contract get a channel without
@@ -14,8 +14,10 @@
   concurrently;
 - Zenoh's callback only timestamps and enqueues (unbounded queue: no loss); a writer thread does the
   rest;
-- a chunk is closed when it exceeds `chunk_size_bytes` or `flush_interval_s` after its first
-  message, so a `kill -9` loses at most about that long; SIGINT/SIGTERM close the file with its
+- a chunk is closed when it exceeds `chunk_size_bytes`, `flush_interval_s` after its first message,
+  or as soon as the bus has been quiet for `idle_flush_s` (between lock-step frames, between bursts):
+  what is written survives a `kill -9` of the recorder (the OS holds it), so a kill loses only what
+  arrived since the bus was last quiet, at most `flush_interval_s` under a steady load; SIGINT/SIGTERM close the file with its
   summary and indexes;
 - an existing file is never truncated or overwritten: a recorder started again with the same `out`
   (e.g. restarted after a crash) writes the next segment (`flight.1.mcap`, ...), which names the
@@ -50,6 +52,7 @@ from bus.provenance import (
     RunContext,
     gather,
 )
+from bus.seal import load_private_key, seal
 
 log = logging.getLogger("atr.recorder")
 
@@ -63,6 +66,8 @@ class RecorderConfig:
     Attributes:
         key_exprs: key expressions subscribed to.
         chunk_size_bytes: a chunk is written once its uncompressed records exceed this many bytes.
+        idle_flush_s: a chunk is written once no message has arrived for this long (the bus is quiet),
+            seconds.
         flush_interval_s: a chunk is written at the latest this long after its first message (bounds
             the loss on a crash), seconds.
         zstd_level: zstd level of chunks (1: fastest positive level; see docs/performance/bus.md).
@@ -76,6 +81,7 @@ class RecorderConfig:
     key_exprs: tuple[str, ...] = DEFAULT_KEY_EXPRS
     chunk_size_bytes: int = 8 * 1024 * 1024
     flush_interval_s: float = 1.0
+    idle_flush_s: float = 0.05
     zstd_level: int = 1
     zstd_threads: int = 0
     max_keys: int = MAX_ID
@@ -88,6 +94,8 @@ class RecorderConfig:
             raise ConfigError(f"chunk size {self.chunk_size_bytes} bytes must be > 0")
         if not self.flush_interval_s > 0:
             raise ConfigError(f"flush interval {self.flush_interval_s} s must be > 0")
+        if not self.idle_flush_s > 0:
+            raise ConfigError(f"idle flush {self.idle_flush_s} s must be > 0")
         if not -7 <= self.zstd_level <= 22:
             raise ConfigError(f"zstd level {self.zstd_level} must be in [-7, 22]")
         if not 1 <= self.max_keys <= MAX_ID:
@@ -220,13 +228,17 @@ class Recorder:
 
     def _write_loop(self) -> None:
         interval_ns = int(self.config.flush_interval_s * 1e9)
-        first_pending_ns = 0
+        idle_s = min(self.config.idle_flush_s, self.config.flush_interval_s)
+        idle_ns = int(idle_s * 1e9)
+        first_pending_ns = last_item_ns = 0
         while True:
             try:
-                item = self._queue.get(timeout=self.config.flush_interval_s / 4)
+                item = self._queue.get(timeout=idle_s)
             except queue.Empty:
                 item = None
             now = time.monotonic_ns()
+            if item is not None:
+                last_item_ns = now
             if item is _STOP:
                 return
             if isinstance(item, _Provenance) and self.failure is None:
@@ -251,7 +263,8 @@ class Recorder:
                     first_pending_ns = now
                 depth = self._queue.qsize()
                 self.stats.queue_max = max(self.stats.queue_max, depth)
-            due = now - first_pending_ns >= interval_ns
+            quiet = now - last_item_ns >= idle_ns and self._queue.empty()
+            due = quiet or now - first_pending_ns >= interval_ns
             if self._writer.pending_messages and due and self.failure is None:
                 try:
                     self._writer.flush()
@@ -357,6 +370,8 @@ class Recorder:
 
     def _check_gap(self, key: str, source: str, seq: int) -> None:
         last = self._last_seq.get((key, source))
+        if last is not None and seq <= last:
+            return  # a message sent again (lock-step's re-send after a restart): nothing lost
         self._last_seq[(key, source)] = seq
         if last is not None and seq != last + 1:
             self.stats.gaps += 1
@@ -462,15 +477,21 @@ def run_recorder(
     service: str = "recorder",
     ready: threading.Event | None = None,
     context: RunContext | None = None,
+    seal_key: str | Path | None = None,
 ) -> RecorderStats:
     """Record until SIGINT/SIGTERM (or `Node.stop()`), then close the file; what `atr record` and
     the recorder service run. Status and ErrorReports go on `atr/{uav}/{service}/...`; `context`
-    (what the launcher knows of the run) goes into the provenance record of the file.
+    (what the launcher knows of the run) goes into the provenance record of the file. With
+    `seal_key` (an Ed25519 private key) the file is sealed when it closes (`FILE.seal`, bus/seal.py):
+    the chain of custody of an air recording starts on the aircraft.
 
     Raises:
         RecordingError: the file could not be written.
 
     """
+    signer = (
+        load_private_key(seal_key) if seal_key is not None else None
+    )  # refused before recording
     with RecorderNode(service, uav, zenoh_config=zenoh_config) as node:
         recorder: Recorder | None = None
 
@@ -506,6 +527,9 @@ def run_recorder(
                 pass
         finally:
             stats = recorder.close()
+            if signer is not None:
+                manifest = seal(recorder.path, signer)
+                log.info("sealed %s: %d messages", recorder.path, manifest["messages"])
         log.info(
             "closed %s: %d messages, %.1f MB, %d channels, %d gaps, max queue %d",
             recorder.path,

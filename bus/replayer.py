@@ -1,4 +1,4 @@
-"""The replayer: a recording's inputs back on the bus, in log-time order (ARCHITECTURE.md §5–6).
+"""The replayer: a recording's inputs back on the bus, in log-time order (docs/recording.md).
 
 Inputs are the messages on `atr/*/camera/image`, `atr/*/imu`, `atr/*/lidar/cloud` and `sim/*/truth`.
 Each is published with its recorded bytes (byte-identical payload) and a fresh attachment carrying
@@ -13,7 +13,9 @@ Modes (one method each):
   `answer_key` (default `atr/{uav}/detections`) whose `stamp_ns` equals the image's, or an
   ErrorReport on any `atr/{uav}/*/errors` key whose `input_stamp_ns` equals it. A missing answer
   after `answer_timeout_s` is logged, counted and reported on the replayer's errors key, and the
-  replay goes on. See docs/recording.md.
+  replay goes on. A service of the vehicle that restarts while a frame waits (killed, restarted by
+  its launcher) gets the frame's inputs again: same bytes, same seq and stamp (bus/answers.py).
+  See docs/recording.md.
 
 Before the first message the replayer waits until the services named in `wait_for` have published a
 Status (their subscribers exist by then), until every publisher has a matching subscriber (or
@@ -31,11 +33,10 @@ from pathlib import Path
 from typing import Any
 
 import zenoh
-from mcap.reader import make_reader
 from mcap.records import Message
 
 from atr.errors import BusError, ConfigError, RecordingError
-from bus import codec, keys
+from bus import codec, keys, mcap_tools
 from bus.answers import DEFAULT_ANSWER_KEY, AnswerWatch
 from bus.node import Node
 from bus.session import open_session
@@ -65,6 +66,7 @@ class ReplayStats:
     frames: int = 0
     answered: int = 0
     timeouts: int = 0
+    resent: int = 0  # frames sent again after a service restarted while they were in flight
     wall_s: float = 0.0
     by_topic: dict[str, int] = field(default_factory=dict)
 
@@ -73,7 +75,8 @@ class Replayer:
     """Publishes the inputs of one recording; usable in-process (`atr run`) or from `atr replay`.
 
     Args:
-        path: the MCAP recording (closed cleanly; run `atr mcap recover` on a crashed one first).
+        path: the MCAP recording (its first segment; continued segments and a cut one are read
+            as far as they go).
         session: an open Zenoh session to publish on (not closed here); None opens one from
             `zenoh_config`.
         zenoh_config: config dict or JSON5 path, used when `session` is None.
@@ -86,7 +89,7 @@ class Replayer:
         status_uav: vehicle id of those keys.
 
     Raises:
-        RecordingError: the file is missing, not closed, or holds no input.
+        RecordingError: the file is missing, not MCAP, or holds no input.
 
     """
 
@@ -174,11 +177,17 @@ class Replayer:
         try:
             self._get_ready()
             start_wall = time.monotonic()
+            frame: list[tuple[str, Message]] = []  # the inputs of the frame in flight
+            since = self._watch.mark()
             for topic, message in self._messages():
                 self._publish(topic, message)
+                frame.append((topic, message))
                 image = IMAGE_TOPIC.match(topic)
                 if image is not None:
-                    self._await_answer(image.group(1), message, answer_key, answer_timeout_s)
+                    self._await_answer(
+                        image.group(1), message, answer_key, answer_timeout_s, frame, since
+                    )
+                    frame, since = [], self._watch.mark()
             return self._finish(start_wall)
         finally:
             self._watch.close()
@@ -226,23 +235,13 @@ class Replayer:
     def _input_topics(self, uav: str | None) -> list[str]:
         if not self.path.is_file():
             raise RecordingError(f"recording {self.path} does not exist")
-        with open(self.path, "rb") as f:
-            try:
-                summary = make_reader(f).get_summary()
-            except Exception as exc:  # the mcap reader raises several types on a cut-short file
-                raise RecordingError(
-                    f"{self.path} has no readable summary ({exc}); "
-                    "run `atr mcap recover` on it first"
-                ) from exc
-        if summary is None:
-            raise RecordingError(f"{self.path} has no summary; run `atr mcap recover` on it first")
-        topics = sorted(
-            {
-                c.topic
-                for c in summary.channels.values()
-                if is_input_topic(c.topic) and (uav is None or c.topic.split("/")[1] == uav)
-            }
-        )
+        # every segment's channels (flight.mcap, flight.1.mcap, ...); a cut first segment is read
+        # as far as it goes
+        topics = [
+            t
+            for t in mcap_tools.topics(self.path)
+            if is_input_topic(t) and (uav is None or t.split("/")[1] == uav)
+        ]
         if not topics:
             which = f" for {uav}" if uav else ""
             raise RecordingError(
@@ -251,13 +250,12 @@ class Replayer:
         return topics
 
     def _messages(self) -> Iterator[tuple[str, Message]]:
-        with open(self.path, "rb") as f:
-            for _, channel, message in make_reader(f).iter_messages(
-                topics=self.topics, log_time_order=True
-            ):
-                if self._stop.is_set():
-                    return
-                yield channel.topic, message
+        # All segments of the recording (flight.mcap, flight.1.mcap, ...) as one; a chunk that
+        # cannot be read raises a RecordingError naming the file and the chunk's offset.
+        for topic, message in mcap_tools.iter_messages(self.path, topics=self.topics):
+            if self._stop.is_set():
+                return
+            yield topic, message
 
     def _publish(self, topic: str, message: Message) -> None:
         attachment = codec.encode_attachment(message.sequence, message.publish_time, self.source_id)
@@ -284,14 +282,31 @@ class Replayer:
         self._stop.wait(self._settle_s)
 
     def _wait_for_services(self) -> None:
-        from bus.launcher import wait_until_ready  # noqa: PLC0415
+        from bus.launcher import wait_until_ready
 
         wait_until_ready(self.session, "*", list(self._wait_for), self._ready_timeout_s)
 
-    def _await_answer(self, uav: str, image: Message, answer_key: str, timeout_s: float) -> None:
+    def _await_answer(
+        self,
+        uav: str,
+        image: Message,
+        answer_key: str,
+        timeout_s: float,
+        frame: list[tuple[str, Message]],
+        since: int,
+    ) -> None:
         stamp = image.publish_time
+
+        def send_again() -> None:
+            # a service restarted while this frame was in flight: it may have missed its inputs
+            log.warning("a service restarted: sending the frame of stamp %d ns again", stamp)
+            self.stats.resent += 1
+            for topic, message in frame:
+                if topic.split("/")[1] == uav:
+                    self._publish(topic, message)
+
         self.stats.frames += 1
-        answered = self._watch.wait(uav, stamp, timeout_s, self._stop)
+        answered = self._watch.wait(uav, stamp, timeout_s, self._stop, send_again, since)
         if self._stop.is_set():
             return
         if answered:

@@ -27,6 +27,7 @@ import hashlib
 import json
 import os
 import struct
+import time
 from collections import Counter
 from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -411,6 +412,36 @@ def verify(
     _compare(sealed, _named(current.leaves), verdict)
     verdict.intact = not verdict.lines()
     return verdict
+
+
+def write_receipt(
+    out: str | Path, path: str | Path, public_key: Ed25519PublicKey, verdict: Verdict
+) -> None:
+    """Record a verification: what was checked (the file's SHA-256), with which key, when, and the
+    verdict with every problem, as JSON (the ground's receipt of an air recording).
+
+    Raises:
+        RecordingError: the receipt cannot be written.
+
+    """
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        while block := f.read(1 << 24):
+            digest.update(block)
+    receipt = {
+        "file": Path(path).name,
+        "sha256": digest.hexdigest(),
+        "key": fingerprint(public_key),
+        "verified_at_ns": time.time_ns(),
+        "intact": verdict.intact,
+        "signature_ok": verdict.signature_ok,
+        "sealed_messages": verdict.sealed_messages,
+        "problems": verdict.lines(),
+    }
+    try:
+        Path(out).write_text(json.dumps(receipt, indent=1))
+    except OSError as exc:
+        raise RecordingError(f"cannot write the receipt {out}: {exc}") from exc
 
 
 def _compare(sealed: list[Leaf], current: list[Leaf], verdict: Verdict) -> None:

@@ -7,6 +7,7 @@ The key is the one you were given by whoever sealed the file, never one read fro
 Examples:
     atr verify runs/flight.mcap --pub keys/recorder.pub
     atr verify copy.mcap --pub keys/recorder.pub --seal runs/flight.mcap.seal
+    atr verify air.mcap --pub deploy/air-uav1-recorder.pub --json air.mcap.receipt.json
 
 """
 
@@ -22,15 +23,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pub", required=True, help="the trusted Ed25519 public key (.pub)")
     parser.add_argument("--seal", help="the manifest (default: FILE.seal)")
     parser.add_argument("--max-lines", type=int, default=50, help="problems listed at most")
+    parser.add_argument(
+        "--json",
+        metavar="OUT",
+        help="write the verdict (the ground's receipt: file hash, key, time, every problem) as JSON",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Verify; print the verdict; return 0 intact, 1 altered, 2 unreadable."""
     from atr.errors import AtrError
-    from bus.seal import load_public_key, verify
+    from bus.seal import load_public_key, verify, write_receipt
 
     try:
-        verdict = verify(args.file, load_public_key(args.pub), args.seal)
+        public_key = load_public_key(args.pub)
+        verdict = verify(args.file, public_key, args.seal)
+        if args.json:
+            write_receipt(args.json, args.file, public_key, verdict)
     except AtrError as exc:
         print(f"atr verify: {exc}", file=sys.stderr)
         return 2

@@ -26,10 +26,12 @@ import numpy as np
 from atr.baselines2d import Baseline2dConfig, Template2d, recognize_2d
 from atr.baselines2d.config import PAIRS
 from atr.config import AtrConfig, apply_overrides
-from atr.errors import AtrError, ConfigError
-from atr.imu import NavState, PoseIntegrator
+from atr.errors import AtrError, ConfigError, InputError
+from atr.imu import NavState
+from atr.imu.pose_track import FramePose, PoseTrack
 from atr.recognition import DESCRIPTORS, Template, recognize
 from atr.sfm import reconstruct
+from atr.sfm.pairing import FramePairer, Pair
 from atr.sim.flight import SensorFrame, simulate_flight
 from atr.sim.scenarios import scenario as scenario_preset
 
@@ -254,7 +256,7 @@ def flight_frames(flight: Flight, config: AtrConfig, lidar: bool) -> Iterable[Se
     """The flight's simulated frames (what `atr simulate` records); with ``flight.every`` > 1 only the
     sampled scenes' frames are rendered (the others carry IMU and truth only).
     """
-    from atr.io.mesh import load_mesh  # noqa: PLC0415 - Open3D file readers only when a file is given
+    from atr.io.mesh import load_mesh  # Open3D file readers only when a file is given
 
     target = load_mesh(flight.target_mesh) if flight.target_mesh else None
     clutter = [load_mesh(p) for p in flight.clutter_meshes]
@@ -341,18 +343,34 @@ def run_flight(
     gap = config.sfm.pair_gap_frames
     need_lidar = any(a.pipeline == "lidar" for a in arms)
     records: dict[Arm, list[SceneRecord]] = {a: [] for a in arms}
-    integrator: PoseIntegrator | None = None
-    poses: dict[int, np.ndarray] = {}
-    images: dict[int, np.ndarray] = {}
+    track = PoseTrack(config.imu, gap)  # what services/pose_integrator runs
+    pairer = FramePairer(gap)  # what services/sfm runs
     source = frames if frames is not None else flight_frames(flight, config, need_lidar)
     for index, frame in enumerate(source):
         k = frame.seq
-        if index == 0:
-            integrator = PoseIntegrator(config.imu, initial_nav_state(frame))
-        if len(frame.imu_t_ns):
-            integrator.add_imu(frame.imu_t_ns.astype(np.int64), frame.gyro_radps, frame.accel_mps2)
-        poses[k] = integrator.camera_pose(frame.stamp_ns)
-        images[k] = frame.image
+        # the first batch carries the initial state; with nav_fix_every_frame every batch a fix
+        fix = index == 0 or config.sim.nav_fix_every_frame
+        pose = track.add_batch(
+            k,
+            frame.stamp_ns,
+            frame.imu_t_ns.astype(np.int64),
+            frame.gyro_radps,
+            frame.accel_mps2,
+            initial_nav_state(frame) if fix else None,
+        )
+        # the service graph's order: the IMU batch, its relative pose, then the image
+        pairer.add_imu(k)
+        if pose.frame_seq_t is not None:
+            pairer.add_pair(
+                {
+                    "frame_seq_t": pose.frame_seq_t,
+                    "frame_seq_t1": k,
+                    "T_world_cam_t": pose.T_world_cam_t,
+                    "T_world_cam_t1": pose.T_world_cam,
+                }
+            )
+        answer = pairer.add_image(k, {"data": frame.image})
+        pair = answer if isinstance(answer, Pair) and answer.image_t is not None else None
         if flight.is_scene(k, gap):
             truth = truth_of(frame)
             clouds: dict[
@@ -365,9 +383,8 @@ def run_flight(
                     configs[arm],
                     frame,
                     truth,
-                    images,
-                    poses,
-                    gap,
+                    pair,
+                    pose,
                     templates_3d,
                     templates_2d,
                     b2d,
@@ -375,14 +392,8 @@ def run_flight(
                 )
                 # SfM places its cloud with the integrated pose; LIDAR and 2D use the true one
                 uses_imu = not arm.is_2d and arm.pipeline != "lidar"
-                T_est = np.asarray(poses[k], np.float64).tolist() if uses_imu else T_true
+                T_est = np.asarray(pose.T_world_cam, np.float64).tolist() if uses_imu else T_true
                 records[arm].append(replace(record, T_world_cam_true=T_true, T_world_cam_est=T_est))
-        if config.sim.nav_fix_every_frame and index > 0:
-            # an aided navigation fix at this frame, as services/pose_integrator applies it
-            integrator = PoseIntegrator(config.imu, initial_nav_state(frame))
-            poses[k] = integrator.camera_pose(frame.stamp_ns)
-        for old in [f for f in images if f <= k - gap]:
-            del images[old], poses[old]
     return records
 
 
@@ -391,9 +402,8 @@ def _scene(
     config: AtrConfig,
     frame: SensorFrame,
     truth: list[dict[str, Any]],
-    images: dict[int, np.ndarray],
-    poses: dict[int, np.ndarray],
-    gap: int,
+    pair: Pair | None,
+    pose: FramePose,
     templates_3d: Mapping[str, Sequence[Template]],
     templates_2d: Mapping[str, list[Template2d]] | None,
     b2d: Baseline2dConfig,
@@ -432,13 +442,15 @@ def _scene(
             stages = {k_: v for k_, v in rec.items() if k_ != "total"}
         else:
             if config.sfm.matcher not in clouds:
+                if pair is None:
+                    raise InputError(f"frame {k} has no pair: no image or pose of its partner")
                 t_sfm = time.perf_counter()
                 cloud = reconstruct(
-                    images[k - gap],
-                    images[k],
+                    pair.image_t["data"],
+                    pair.image_t1["data"],
                     frame.K,
-                    poses[k - gap],
-                    poses[k],
+                    pair.pose["T_world_cam_t"],
+                    pair.pose["T_world_cam_t1"],
                     config.sfm,
                     frame.dist_coeffs,
                 )
@@ -457,7 +469,7 @@ def _scene(
                 templates_3d[arm.descriptor],
                 config,
                 k,
-                poses[k][:3, 3],
+                pose.T_world_cam[:3, 3],
                 cloud.sigma_m,
             )
             stages |= {k_: v for k_, v in rec.items() if k_ != "total"}

@@ -18,6 +18,7 @@ measurement by linear interpolation.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -278,6 +279,46 @@ class PoseIntegrator:
         self._gyro = np.concatenate((self._gyro, gyro))
         self._accel = np.concatenate((self._accel, accel))
         self._drop_before(self._state.stamp_ns)
+
+    def snapshot(self) -> dict[str, Any]:
+        """The integrator's whole state as plain numpy data (a checkpoint); `restore` inverts it."""
+        s = self._state
+        return {
+            "stamp_ns": s.stamp_ns,
+            "R_world_imu": s.R_world_imu.copy(),
+            "p_world_m": s.p_world_m.copy(),
+            "v_world_mps": s.v_world_mps.copy(),
+            "gyro_bias_radps": s.gyro_bias_radps.copy(),
+            "accel_bias_mps2": s.accel_bias_mps2.copy(),
+            "t_ns": self._t.copy(),
+            "gyro_radps": self._gyro.copy(),
+            "accel_mps2": self._accel.copy(),
+            "first_sample_ns": self._first_sample_ns,
+        }
+
+    @classmethod
+    def restore(cls, config: ImuConfig, snapshot: dict[str, Any]) -> PoseIntegrator:
+        """The integrator a `snapshot` was taken of: it goes on exactly as the original would."""
+        state = NavState._trusted(
+            int(snapshot["stamp_ns"]),
+            *(
+                np.array(snapshot[name], np.float64)
+                for name in (
+                    "R_world_imu",
+                    "p_world_m",
+                    "v_world_mps",
+                    "gyro_bias_radps",
+                    "accel_bias_mps2",
+                )
+            ),
+        )
+        integrator = cls(config, state)
+        integrator._t = np.array(snapshot["t_ns"], np.int64)
+        integrator._gyro = np.array(snapshot["gyro_radps"], np.float64).reshape(-1, 3)
+        integrator._accel = np.array(snapshot["accel_mps2"], np.float64).reshape(-1, 3)
+        first = snapshot["first_sample_ns"]
+        integrator._first_sample_ns = None if first is None else int(first)
+        return integrator
 
     def camera_pose(self, stamp_ns: int) -> np.ndarray:
         """World-from-camera pose at a frame time; integrates up to the stamp.

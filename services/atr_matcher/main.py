@@ -3,8 +3,11 @@
 For each PointCloud (SfM by default, or the LIDAR baseline with `pipeline.cloud_source=lidar`): uniform
 subsampling at 0.3 m, smooth-surface filtering, description with the templates' descriptor, kNNDR matching,
 geometric-consistency grouping, RANSAC per group, ICP verification. One Detections message per cloud, stamped
-with the cloud's stamp_ns (an empty list when nothing is accepted). RANSAC is seeded from the cloud's seq, so
-a replay gives byte-identical detections. Templates come from template_store over the bus (fetched once).
+with the cloud's stamp_ns (an empty list when nothing is accepted). RANSAC is seeded from the cloud's last
+frame_seq, so a replay gives byte-identical detections (whatever clouds were lost before). A cloud put again
+(the same seq from the same sfm, after a restart elsewhere) gets no second answer. Templates come from
+template_store over the bus (fetched once).
+A restarted process reports the cloud a killed one had in hand (its frame is answered) and goes on.
 
 Example:
     atr service atr_matcher --uav uav1 --set recognition.descriptor=fpfh
@@ -14,11 +17,14 @@ Example:
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from atr.recognition import Template, recognize
 from bus import keys
 from bus.clouds import cloud_points
+from bus.node import default_state_dir
 from bus.service import effective_config, service_arguments, start_node
 
 
@@ -37,7 +43,11 @@ def _detection(detection: object) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the service until stopped."""
-    args = service_arguments("atr_matcher", __doc__).parse_args(argv)
+    parser = service_arguments("atr_matcher", __doc__)
+    parser.add_argument(
+        "--state-dir", help="journal folder (default: ATR_STATE_DIR or one per launcher)"
+    )
+    args = parser.parse_args(argv)
     config = effective_config(args)
     pipeline, recognition = config.pipeline, config.recognition
     source_key = (
@@ -47,7 +57,9 @@ def main(argv: list[str] | None = None) -> int:
         p.rsplit("/", 1)[-1].rsplit(".", 1)[0] for p in pipeline.target_meshes
     ]
     templates: list[Template] = []
-    with start_node("atr_matcher", args, inputs=[source_key]) as node:
+    answered: deque[tuple[str | None, int]] = deque(maxlen=64)  # (source, seq) of the last clouds
+    state_dir = args.state_dir or default_state_dir()
+    with start_node("atr_matcher", args, inputs=[source_key], state_dir=state_dir) as node:
         node.ready()
         for message in node.events():
             with node.handling(message):
@@ -64,12 +76,16 @@ def main(argv: list[str] | None = None) -> int:
                         for t in targets
                     ]
                 cloud = message.data
+                if (message.source, message.seq) in answered:
+                    # a cloud sent again after a restart: its answer again, the same message
+                    node.republish(keys.detections(args.uav), message.stamp_ns)
+                    continue
                 sigma = cloud.get("sigma_m")
                 result = recognize(
                     cloud_points(cloud).astype(np.float64),
                     templates,
                     recognition,
-                    seed=message.seq,
+                    seed=int(cloud["frame_seqs"][-1]),  # the frame, whatever clouds were lost
                     viewpoint_m=cloud.get("viewpoint_m"),
                     scene_sigma_m=None if sigma is None else np.asarray(sigma, np.float64),
                 )
@@ -83,5 +99,6 @@ def main(argv: list[str] | None = None) -> int:
                         "detections": [_detection(d) for d in result.detections],
                     },
                 )
+                answered.append((message.source, message.seq))
                 node.timing(message.seq, message.stamp_ns, result.stage_times_ms)
     return 0

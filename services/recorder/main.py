@@ -53,6 +53,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--input", metavar="MCAP", help="the recording a replay publishes (its SHA-256 is recorded)"
     )
+    parser.add_argument(
+        "--seal-key",
+        metavar="KEY",
+        help="Ed25519 private key (`atr keygen`, `atr certs`): seal each file when it closes",
+    )
     args = parser.parse_args(argv)
 
     from bus.node import setup_logging
@@ -66,6 +71,7 @@ def main(argv: list[str] | None = None) -> int:
             uav=args.uav,
             zenoh_config=args.zenoh,
             config=RecorderConfig(flush_interval_s=args.flush_interval),
+            seal_key=args.seal_key,
             context=RunContext(
                 uav=args.uav,
                 layout=args.layout,

@@ -7,7 +7,8 @@ GNSS/INS alignment before take-off would), the LIDAR cloud (with --lidar), the t
 
 Pacing: `--pace realtime` (the frame interval of the flight), `--pace fast` (as fast as it renders), or
 `--pace lock-step` (the next frame only after the pipeline answered the last: a Detections or an ErrorReport
-stamped with the frame's stamp_ns; nothing is ever dropped).
+stamped with the frame's stamp_ns; nothing is ever dropped). A service that restarts while a frame waits gets
+the frame's messages again (the same bytes, seq and stamp).
 
 Example:
     atr service sensor_source --scenario 1 --run 3 --frames 20 --pace lock-step
@@ -16,134 +17,15 @@ Example:
 
 from __future__ import annotations
 
-import argparse
 import logging
 import time
-from collections.abc import Iterator
-from typing import TYPE_CHECKING, Any
-
-import numpy as np
 
 from bus import keys
 from bus.answers import AnswerWatch
+from bus.flight_messages import add_flight_arguments, flight_frames, frame_messages
 from bus.service import effective_config, service_arguments, start_node
 
-if TYPE_CHECKING:  # the simulator (Open3D) loads only when a flight is flown, not for `atr --help`
-    from atr.config import AtrConfig
-    from atr.sim.flight import SensorFrame
-
 log = logging.getLogger("atr")
-
-
-def frame_messages(
-    frame: SensorFrame,
-    uav: str,
-    scenario: int,
-    run: int,
-    seed: int,
-    nav_fix: bool,
-    present_min_visible_fraction: float,
-) -> Iterator[tuple[str, dict[str, Any]]]:
-    """The (key, message) pairs of one simulated frame, in publication order (image last).
-
-    The truth lists the targets in the scene: those at least `present_min_visible_fraction` visible
-    (ARCHITECTURE.md §4: an empty list when no target is in the scene).
-    """
-    imu = {
-        "stamp_ns": frame.stamp_ns,
-        "seq": frame.seq,
-        "frame_seq": frame.seq,
-        "t_ns": frame.imu_t_ns.astype(np.int64),
-        "gyro_radps": frame.gyro_radps,
-        "accel_mps2": frame.accel_mps2,
-    }
-    if nav_fix:  # the flight's first frame, or every frame with an aided navigation fix
-        imu["init"] = {"T_world_imu": frame.T_world_imu, "v_world_mps": frame.v_world_imu_mps}
-    yield keys.imu(uav), imu
-    if frame.lidar_points_m is not None:
-        yield (
-            keys.lidar(uav),
-            {
-                "stamp_ns": frame.stamp_ns,
-                "seq": frame.seq,
-                "source": "lidar",
-                "frame_seqs": [frame.seq],
-                "points_m": frame.lidar_points_m.astype(np.float32),
-                "viewpoint_m": frame.T_world_cam[:3, 3].astype(np.float64),
-            },
-        )
-    yield (
-        keys.truth(uav),
-        {
-            "stamp_ns": frame.stamp_ns,
-            "seq": frame.seq,
-            "frame_seq": frame.seq,
-            "T_world_cam": frame.T_world_cam,
-            "scenario": scenario,
-            "run": run,
-            "seed": seed,
-            "targets": [
-                {
-                    "name": t.name,
-                    "T_world_target": t.T_world_target,
-                    "visible_fraction": float(t.visible_fraction),
-                }
-                for t in frame.targets
-                if t.visible_fraction >= present_min_visible_fraction
-            ],
-        },
-    )
-    yield (
-        keys.image(uav),
-        {
-            "stamp_ns": frame.stamp_ns,
-            "seq": frame.seq,
-            "frame_seq": frame.seq,
-            "encoding": "rgb8",
-            "data": frame.image,
-            "K": frame.K,
-            "distortion": np.asarray(frame.dist_coeffs, np.float64),
-        },
-    )
-
-
-def add_flight_arguments(parser: argparse.ArgumentParser) -> None:
-    """The arguments that choose a simulated flight (shared with `atr simulate`)."""
-    parser.add_argument("--scenario", type=int, default=1, help="Table II scenario (1, 2, 3)")
-    parser.add_argument(
-        "--run", type=int, default=3, help="run within the scenario (1-based; 3 = 30 deg)"
-    )
-    parser.add_argument("--frames", type=int, help="stop after this many frames")
-    parser.add_argument(
-        "--seed", type=int, default=0, help="world seed (other seeds build other worlds)"
-    )
-    parser.add_argument(
-        "--lidar", action="store_true", help="also simulate the LIDAR baseline's scans"
-    )
-    parser.add_argument(
-        "--noise", help="noise spec: shot, gaussian:10, gaussian:30, or combined with commas"
-    )
-    parser.add_argument("--target-mesh", help="mesh file (PLY/OBJ/STL/GLB) replacing the T-72")
-    parser.add_argument(
-        "--clutter-mesh", action="append", default=[], help="extra confuser mesh (repeatable)"
-    )
-
-
-def flight_frames(config: AtrConfig, args: argparse.Namespace) -> Iterator[SensorFrame]:
-    """The simulated frames of the flight the `add_flight_arguments` options describe."""
-    from atr.evaluation.runner import Flight  # noqa: PLC0415 - loads Open3D
-    from atr.evaluation.runner import flight_frames as fly
-
-    flight = Flight(
-        args.scenario,
-        args.run,
-        args.frames,
-        args.seed,
-        args.noise or "none",
-        args.target_mesh,
-        tuple(args.clutter_mesh),
-    )
-    return iter(fly(flight, config, args.lidar))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -167,6 +49,7 @@ def main(argv: list[str] | None = None) -> int:
                 break
             if args.pace == "realtime" and last_stamp is not None:
                 time.sleep(max(0.0, (frame.stamp_ns - last_stamp) * 1e-9))
+            since, sent = watch.mark(), []
             for key, message in frame_messages(
                 frame,
                 args.uav,
@@ -177,9 +60,17 @@ def main(argv: list[str] | None = None) -> int:
                 config.sim.present_min_visible_fraction,
             ):
                 node.publish(key, message)
+                sent.append(key)
+
+            def send_again(keys_sent: list[str] = sent, stamp: int = frame.stamp_ns) -> None:
+                # a service restarted while the frame was in flight: the same messages again
+                log.warning("a service restarted: sending the frame of stamp %d ns again", stamp)
+                for key in keys_sent:
+                    node.republish(key, stamp)
+
             last_stamp = frame.stamp_ns
             if args.pace == "lock-step" and not watch.wait(
-                args.uav, frame.stamp_ns, args.answer_timeout
+                args.uav, frame.stamp_ns, args.answer_timeout, on_restart=send_again, since=since
             ):
                 node.report_error(
                     keys.detections(args.uav),

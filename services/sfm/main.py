@@ -5,7 +5,11 @@ frame t + gap and triangulated with the camera poses from pose_integrator (no es
 `sfm.matcher=sgm` (ours), every textured pixel is matched by semi-global matching of the pair rectified with
 those poses, a dense cloud. One PointCloud per camera frame, stamped with that frame's stamp_ns: the cloud of
 the pair (k - gap, k), or an empty cloud with a `note` while no pair exists yet — so every frame gets exactly
-one answer downstream.
+one answer downstream (atr/sfm/pairing.py): a frame without an image `gap` frames earlier gets an empty
+cloud, a frame whose IMU batch never arrived an ErrorReport (when a later batch shows it was skipped, or
+`IMU_GRACE_S` after its image when nothing later comes). An input of a frame already
+answered (sent again after a restart downstream) puts that frame's cloud again, the same message.
+A restarted process reports the input a killed one had in hand (its frame is answered) and goes on.
 
 Example:
     atr service sfm --uav uav1 --set sfm.matcher=surf --set sfm.pair_gap_frames=2
@@ -14,13 +18,22 @@ Example:
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
+from atr.errors import InputError
 from atr.sfm import reconstruct
+from atr.sfm.pairing import Answer, FramePairer, Missing, NoPartner
 from bus import keys
 from bus.clouds import compact_points
-from bus.node import Message
+from bus.node import Message, default_state_dir
 from bus.service import effective_config, service_arguments, start_node
+
+# How long an image waits for its own frame's IMU batch before the batch is taken as lost. The batch is
+# sent before the image and normally arrives within milliseconds of it (on another key, so possibly after
+# it); lock-step sends nothing later until this frame is answered, so only a time can end the wait.
+IMU_GRACE_S = 2.0
 
 
 def _cloud(
@@ -45,14 +58,18 @@ def _cloud(
 
 def main(argv: list[str] | None = None) -> int:
     """Run the service until stopped."""
-    args = service_arguments("sfm", __doc__).parse_args(argv)
+    parser = service_arguments("sfm", __doc__)
+    parser.add_argument(
+        "--state-dir", help="journal folder (default: ATR_STATE_DIR or one per launcher)"
+    )
+    args = parser.parse_args(argv)
     full_config = effective_config(args)
     config, compact = full_config.sfm, full_config.pipeline.compact_clouds
-    gap, source = config.pair_gap_frames, f"sfm-{config.matcher}"
-    images: dict[int, dict] = {}  # frame_seq -> Image message
-    pairs: dict[int, dict] = {}  # frame_seq_t1 -> RelativePose message
-    inputs = [keys.image(args.uav), keys.relative_pose(args.uav)]
-    with start_node("sfm", args, inputs=inputs) as node:
+    source = f"sfm-{config.matcher}"
+    pairer = FramePairer(config.pair_gap_frames)
+    inputs = [keys.imu(args.uav), keys.image(args.uav), keys.relative_pose(args.uav)]
+    state_dir = args.state_dir or default_state_dir()
+    with start_node("sfm", args, inputs=inputs, state_dir=state_dir) as node:
         node.ready()
 
         def publish_cloud(message: dict) -> None:
@@ -61,26 +78,26 @@ def main(argv: list[str] | None = None) -> int:
                 message |= compact_points(points)
             node.publish(keys.sfm_cloud(args.uav), message)
 
-        def reconstruct_pair(frame: int, trigger: Message) -> None:
-            image_b, pose = images[frame], pairs.pop(frame)
-            image_a = images.get(pose["frame_seq_t"])
-            if image_a is None:
-                note = f"image of frame {pose['frame_seq_t']} never arrived"
-                empty = np.zeros((0, 3))
-                publish_cloud(
-                    _cloud(
-                        image_b["stamp_ns"],
-                        source,
-                        [pose["frame_seq_t"], frame],
-                        empty,
-                        empty[:, 0],
-                        pose["T_world_cam_t1"][:3, 3],
-                        note,
-                    ),
-                )
+        def empty(image: dict, frames: list[int], viewpoint: np.ndarray, note: str) -> None:
+            none = np.zeros((0, 3))
+            publish_cloud(
+                _cloud(image["stamp_ns"], source, frames, none, none[:, 0], viewpoint, note)
+            )
+
+        def answer(result: Answer, trigger: Message) -> None:
+            if isinstance(result, Missing):
+                raise InputError(result.reason)
+            if isinstance(result, NoPartner):
+                empty(result.image, [result.frame_seq], np.zeros(3), result.reason)
+                return
+            pose, image_b = result.pose, result.image_t1
+            frames = [int(pose["frame_seq_t"]), result.frame_seq]
+            if result.image_t is None:
+                note = f"no image of frame {frames[0]} was accepted (never arrived, or rejected)"
+                empty(image_b, frames, pose["T_world_cam_t1"][:3, 3], note)
                 return
             cloud = reconstruct(
-                image_a["data"],
+                result.image_t["data"],
                 image_b["data"],
                 image_b["K"],
                 pose["T_world_cam_t"],
@@ -92,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
                 _cloud(
                     image_b["stamp_ns"],
                     source,
-                    [pose["frame_seq_t"], frame],
+                    frames,
                     cloud.points_world_m,
                     cloud.sigma_m,
                     pose["T_world_cam_t1"][:3, 3],
@@ -102,34 +119,50 @@ def main(argv: list[str] | None = None) -> int:
             stages = {k[5:-2]: 1e3 * v for k, v in cloud.stats.items() if k.startswith("time_")}
             node.timing(trigger.seq, image_b["stamp_ns"], stages)
 
-        for message in node.events():
-            with node.handling(message):
-                if message.type_name == "Image":
-                    frame = int(message.data["frame_seq"])
-                    images[frame] = message.data
-                    for stale in [f for f in images if f < frame - 4 * gap - 4]:
-                        del images[stale]  # its pose never came (reported upstream)
-                    if frame < gap:
-                        empty = np.zeros((0, 3))
-                        publish_cloud(
-                            _cloud(
-                                message.stamp_ns,
-                                source,
-                                [frame],
-                                empty,
-                                empty[:, 0],
-                                np.zeros(3),
-                                f"frame {frame} has no partner {gap} frames earlier yet",
-                            ),
-                        )
-                else:
-                    frame = int(message.data["frame_seq_t1"])
-                    pairs[frame] = message.data
-                if frame in images and frame in pairs:
-                    try:
-                        reconstruct_pair(frame, message)
-                    finally:
-                        # Keep only the images a later pair can still use.
-                        for old in [f for f in images if f <= frame - gap]:
-                            del images[old]
+        # images whose frame's IMU batch has not arrived: frame -> (monotonic arrival s, stamp_ns)
+        waiting: dict[int, tuple[float, int]] = {}
+
+        def report_missing(missing: Missing, stamp_ns: int | None) -> None:
+            node.report_error(
+                keys.image(args.uav), InputError(missing.reason), input_stamp_ns=stamp_ns
+            )
+
+        def give_up_overdue() -> None:
+            now = time.monotonic()
+            for k, (arrived, stamp_ns) in list(waiting.items()):
+                if not pairer.lacks_imu(k):
+                    del waiting[k]
+                elif now - arrived > IMU_GRACE_S:
+                    del waiting[k]
+                    if (missing := pairer.give_up(k)) is not None:
+                        report_missing(missing, stamp_ns)
+
+        sensor: str | None = None  # the publisher of the flight's images and IMU batches
+        while not node.stopping:
+            for message in node.events(timeout_s=IMU_GRACE_S / 4):
+                with node.handling(message):
+                    if message.type_name != "RelativePose" and message.source != sensor:
+                        # another sensor source (or replay): a new flight, whose frame numbers start
+                        # again; a re-send comes from the same publisher and is a repeat
+                        if sensor is not None:
+                            pairer, waiting = FramePairer(config.pair_gap_frames), {}
+                        sensor = message.source
+                    if message.type_name == "ImuBatch":
+                        for missing in pairer.add_imu(int(message.data["frame_seq"])):
+                            report_missing(missing, waiting.pop(missing.frame_seq, (0.0, None))[1])
+                        continue
+                    k = int(message.data.get("frame_seq", message.data.get("frame_seq_t1", -1)))
+                    if message.type_name == "Image":
+                        result = pairer.add_image(k, message.data)
+                        if result is None and pairer.lacks_imu(k):
+                            waiting[k] = (time.monotonic(), message.stamp_ns)
+                    else:
+                        result = pairer.add_pair(message.data)
+                    if result is not None:
+                        answer(result, message)
+                    elif pairer.answered(k):
+                        # sent again after a restart downstream: the frame's cloud again, as it was
+                        node.republish(keys.sfm_cloud(args.uav), message.stamp_ns)
+                give_up_overdue()
+            give_up_overdue()
     return 0

@@ -300,3 +300,73 @@ def test_sfm_reports_a_bad_lens_and_reconstructs_the_next_pair(hub):
     finally:
         session.close()
         stop_process(service)
+
+
+def _batch(frame: int) -> dict:
+    """Frame `frame`'s IMU batch of a stationary flight; frame 0 carries the initial state."""
+    t = 1_000_000_000 + frame * 100_000_000 + np.arange(1, 21, dtype=np.int64) * 5_000_000
+    batch = _good_imu(frame) | {"t_ns": t, "stamp_ns": int(t[-1])}
+    if frame:
+        del batch["init"]
+    return batch
+
+
+def test_a_killed_pose_integrator_restarts_from_its_checkpoint(tmp_path):
+    """kill -9 mid-flight under `atr up`: the restarted process goes on with the flight's track."""
+    port = free_port()
+    layout = tmp_path / "mini.yml"
+    layout.write_text(
+        f"name: mini\nvariables: {{uav: uav1, hub: 'tcp/127.0.0.1:{port}'}}\n"
+        "zenoh: compose/zenoh/local.json5\n"
+        "processes:\n  - {name: router, service: router, role: hub, args: [--listen, '${hub}']}\n"
+        f"  - {{name: pose_integrator, service: pose_integrator, args: [--state-dir, '{tmp_path}']}}\n"
+    )
+    up = subprocess.Popen(
+        [sys.executable, "-m", "cli.main", "up", str(layout)],
+        env=bus_env(f"tcp/127.0.0.1:{port}"),
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+    )
+    try:
+        wait_for_port(port, 30)
+        session = open_session(peer_config(f"tcp/127.0.0.1:{port}"))
+        try:
+            first = _wait_running(session, "pose_integrator")
+            pairs, errors = {}, []
+            session.declare_subscriber(
+                "atr/uav1/pose/relative",
+                lambda s: pairs.update(
+                    {(m := codec.unpack(s.payload.to_bytes()))["frame_seq_t1"]: m}
+                ),
+            )
+            session.declare_subscriber(
+                "atr/uav1/pose_integrator/errors",
+                lambda s: errors.append(codec.unpack(s.payload.to_bytes())["reason"]),
+            )
+            time.sleep(0.5)
+
+            def fly(frames: range) -> None:
+                for frame in frames:
+                    session.put("atr/uav1/imu", codec.pack(_batch(frame)))
+                    deadline = time.monotonic() + 20
+                    while frame > 0 and frame not in pairs and time.monotonic() < deadline:
+                        time.sleep(0.05)
+
+            fly(range(4))
+            subprocess.run(["kill", "-9", str(first["pid"])], check=True)
+            second = first
+            deadline = time.monotonic() + 60
+            while second["pid"] == first["pid"] and time.monotonic() < deadline:
+                second = _wait_running(session, "pose_integrator", 60)
+            time.sleep(0.5)
+            fly(range(4, 7))
+            assert sorted(pairs) == [1, 2, 3, 4, 5, 6], errors
+            assert not errors
+            # the pair across the restart starts where the killed process left frame 3
+            assert np.array_equal(pairs[4]["T_world_cam_t"], pairs[3]["T_world_cam_t1"])
+        finally:
+            session.close()
+    finally:
+        assert stop_process(up, 30) == 0
+    assert not list(tmp_path.glob("pose_integrator-*")), "a clean stop leaves no checkpoint"

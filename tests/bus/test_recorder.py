@@ -162,6 +162,22 @@ def test_kill_9_leaves_a_file_that_recovers_up_to_its_last_chunk(hub: str, tmp_p
         assert topics.count(key) == 6, key
 
 
+def _record_two_frames(hub: str, out: Path, *args: str) -> None:
+    """The recorder service with `args` records two published frames, then stops on SIGTERM."""
+    watcher = Watcher(hub)
+    try:
+        recorder = atr(hub, "service", "recorder", "--out", str(out), *args)
+        watcher.wait_for("recorder")
+        code, err = finish(helper(hub, "publish", "--frames", "2"))
+        assert code == 0, err
+        time.sleep(0.3)
+        recorder.send_signal(signal.SIGTERM)
+        code, err = finish(recorder)
+        assert code == 0, err
+    finally:
+        watcher.close()
+
+
 def test_every_recording_says_what_made_it_and_closes_with_a_marker(
     hub: str, tmp_path: Path
 ) -> None:
@@ -174,30 +190,16 @@ def test_every_recording_says_what_made_it_and_closes_with_a_marker(
     source = tmp_path / "input.mcap"
     source.write_bytes(b"a recording a replay would publish")
     out = tmp_path / "rec.mcap"
-    watcher = Watcher(hub)
-    try:
-        recorder = atr(
-            hub,
-            "service",
-            "recorder",
-            "--out",
-            str(out),
-            "--layout",
-            "local",
-            "--set",
-            "recognition.descriptor=fpfh",
-            "--input",
-            str(source),
-        )
-        watcher.wait_for("recorder")
-        code, err = finish(helper(hub, "publish", "--frames", "2"))
-        assert code == 0, err
-        time.sleep(0.3)
-        recorder.send_signal(signal.SIGTERM)
-        code, err = finish(recorder)
-        assert code == 0, err
-    finally:
-        watcher.close()
+    _record_two_frames(
+        hub,
+        out,
+        "--layout",
+        "local",
+        "--set",
+        "recognition.descriptor=fpfh",
+        "--input",
+        str(source),
+    )
 
     assert mcap_tools.check(out) == []  # includes the data section's CRC
     with open(out, "rb") as f:
@@ -215,3 +217,21 @@ def test_every_recording_says_what_made_it_and_closes_with_a_marker(
     assert metadata[provenance.END_METADATA_NAME]["clean_close"] == "true"
     report = audit.audit(out)
     assert report.closed and report.provenance[0]["layout"] == "local"
+
+
+def test_a_recorder_with_a_key_seals_its_file_when_it_closes(hub: str, tmp_path: Path) -> None:
+    """The air recorder's half of the chain of custody: its file is sealed as it closes, and the
+    verifier with the pinned public key finds it intact; a bad key is refused before recording."""
+    from bus import seal
+
+    private, public = seal.generate_keys(tmp_path / "keys")
+    bad = atr(
+        hub, "service", "recorder", "--out", str(tmp_path / "x.mcap"), "--seal-key", str(public)
+    )
+    code, err = finish(bad)
+    assert code == 1 and "no usable private key" in err and "Traceback" not in err
+    assert not (tmp_path / "x.mcap").exists()
+    out = tmp_path / "air.mcap"
+    _record_two_frames(hub, out, "--seal-key", str(private))
+    verdict = seal.verify(out, seal.load_public_key(public))
+    assert verdict.intact and verdict.sealed_messages > 0

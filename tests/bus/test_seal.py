@@ -3,6 +3,8 @@ detected and located; keys are pinned by the verifier."""
 
 from __future__ import annotations
 
+import hashlib
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -174,8 +176,14 @@ def test_cli_exit_codes(tmp_path: Path) -> None:
     assert atr("keygen", "--out", str(tmp_path / "k")).returncode == 0
     sealed = atr("seal", str(path), "--key", str(tmp_path / "k" / "recorder.key"))
     assert sealed.returncode == 0, sealed.stderr
-    ok = atr("verify", str(path), "--pub", str(tmp_path / "k" / "recorder.pub"))
+    receipt = tmp_path / "receipt.json"
+    ok = atr(
+        "verify", str(path), "--pub", str(tmp_path / "k" / "recorder.pub"), "--json", str(receipt)
+    )
     assert ok.returncode == 0 and "intact" in ok.stdout
+    recorded = json.loads(receipt.read_text())
+    assert recorded["intact"] and recorded["problems"] == []
+    assert recorded["sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
     rows = _rows()
     rows[4] = (*rows[4][:4], b"changed")
     _write(path, rows)

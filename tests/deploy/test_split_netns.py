@@ -221,6 +221,7 @@ class Split:
         snapshot = self.folder / "snapshot.mcap"
         readable = self.folder / "readable.mcap"
         shutil.copyfile(self.recording, snapshot)
+        readable.unlink(missing_ok=True)  # recover never overwrites a recording
         recover(snapshot, readable)
         with readable.open("rb") as stream:
             return [

@@ -26,7 +26,7 @@ ARGS = [*SMALL_FLIGHT, *LENS, "--frames", "3"]
 
 
 def evaluate(results, via_services: bool):
-    from cli.evaluate import execute, plan  # noqa: PLC0415
+    from cli.evaluate import execute, plan
 
     args = build_parser().parse_args([*ARGS, "--results", str(results)])
     p = plan(args)
