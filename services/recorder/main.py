@@ -7,29 +7,26 @@ line or from the environment (ATR_RECORDER_OUT, ATR_UAV); see service.yml.
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import time
 
 from atr.errors import AtrError
+from bus.service import service_arguments
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the recorder until stopped; returns the process exit code."""
-    parser = argparse.ArgumentParser(prog="recorder", description=__doc__)
+    # --uav, --zenoh, --config and --set as every service takes them; the pipeline's --config and
+    # --set are only recorded here (provenance), never applied
+    parser = service_arguments("recorder", __doc__)
+    parser.set_defaults(uav=os.environ.get("ATR_UAV", "uav1"))
     parser.add_argument(
         "--out",
         default=os.environ.get("ATR_RECORDER_OUT")
         or time.strftime("runs/recording-%Y%m%d-%H%M%S.mcap"),
         help="MCAP file to write (default $ATR_RECORDER_OUT or runs/recording-<time>.mcap); "
         "when it exists (a restart), the next segment OUT.1.mcap, ... is written",
-    )
-    parser.add_argument(
-        "--uav", default=os.environ.get("ATR_UAV", "uav1"), help="vehicle id of own keys"
-    )
-    parser.add_argument(
-        "--zenoh", metavar="CONFIG", help="Zenoh JSON5 config (default: ATR_ZENOH_* env)"
     )
     parser.add_argument(
         "--flush-interval",
@@ -39,17 +36,6 @@ def main(argv: list[str] | None = None) -> int:
     )
     # What the launcher knows of the run, for the recording's provenance record.
     parser.add_argument("--layout", default="", help="the layout this recorder runs in")
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="GROUP.FIELD=VALUE",
-        help="a config override the pipeline services run with (repeatable; recorded only)",
-    )
-    parser.add_argument(
-        "--config", metavar="YAML", help="the config file the pipeline runs with (recorded only)"
-    )
     parser.add_argument(
         "--input", metavar="MCAP", help="the recording a replay publishes (its SHA-256 is recorded)"
     )
