@@ -29,6 +29,7 @@ from atr.regression.report import (
 )
 from atr.regression.tolerances import Tolerances
 from bus import codec
+from bus.mcap_tools import segments
 
 
 @dataclass
@@ -41,7 +42,8 @@ class _Topic:
 
 
 def _read(path: str | Path) -> dict[str, _Topic]:
-    """Every message of `path` by topic (payloads not decoded).
+    """Every message of the recording `path` by topic (payloads not decoded): all its segments,
+    when a restarted recorder continued it (`flight.1.mcap`, ...).
 
     Raises:
         RecordingError: the file is missing or not a readable MCAP recording.
@@ -51,17 +53,18 @@ def _read(path: str | Path) -> dict[str, _Topic]:
         raise RecordingError(f"recording {path} does not exist")
     topics: dict[str, _Topic] = {}
     try:
-        with open(path, "rb") as stream:
-            reader = make_reader(stream)
-            for schema, channel, message in reader.iter_messages(log_time_order=True):
-                topic = topics.get(channel.topic)
-                if topic is None:
-                    topic = topics[channel.topic] = _Topic(
-                        schema.name if schema else "",
-                        channel.message_encoding,
-                        bytes(schema.data) if schema else b"",
-                    )
-                topic.messages.append((message.publish_time, bytes(message.data)))
+        for segment in segments(path):
+            with open(segment, "rb") as stream:
+                reader = make_reader(stream)
+                for schema, channel, message in reader.iter_messages(log_time_order=True):
+                    topic = topics.get(channel.topic)
+                    if topic is None:
+                        topic = topics[channel.topic] = _Topic(
+                            schema.name if schema else "",
+                            channel.message_encoding,
+                            bytes(schema.data) if schema else b"",
+                        )
+                    topic.messages.append((message.publish_time, bytes(message.data)))
     except (McapError, OSError, ValueError, EOFError, KeyError) as exc:
         raise RecordingError(
             f"{path} is not a readable MCAP recording ({type(exc).__name__}: {exc}); "

@@ -260,3 +260,16 @@ def test_pose_difference_in_metres_and_degrees():
     metres, degrees = pose_difference(_pose(0.0), _pose(3.0, 10.0))
     assert metres == pytest.approx(3.0) and degrees == pytest.approx(10.0)
     assert pose_difference(_pose(1.0, 1e-6), _pose(1.0))[1] == pytest.approx(1e-6, rel=1e-3)
+
+
+def test_a_recording_in_segments_is_compared_as_one(base, tmp_path):
+    """A restarted recorder continues in flight.1.mcap: the diff reads both, and a segment's
+    messages are not reported as missing."""
+    messages = flight()
+    half = len(messages) // 2
+    split = tmp_path / "split"
+    split.mkdir()
+    write(split / "flight.mcap", messages[:half])
+    write(split / "flight.1.mcap", messages[half:])
+    assert diff_recordings(base, split / "flight.mcap").same
+    assert not diff_recordings(base, write(tmp_path / "half.mcap", messages[:half])).same
