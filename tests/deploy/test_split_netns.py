@@ -30,8 +30,9 @@ import pytest
 from mcap.reader import make_reader
 
 from bus import codec, keys
-from bus.certs import Deployment, make_deployment
+from bus.certs import Deployment, make_deployment, seal_key_name
 from bus.mcap_tools import recover
+from bus.seal import load_public_key, verify
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
@@ -268,7 +269,19 @@ def split(tmp_path_factory: pytest.TempPathFactory) -> Split:
         )
         air = hosts.start(
             "air",
-            [PY, "-m", "cli.main", "up", "split", "--host", "air", "--no-source", *common],
+            [
+                PY,
+                "-m",
+                "cli.main",
+                "up",
+                "split",
+                "--host",
+                "air",
+                "--no-source",
+                "--var",
+                f"air_out={folder / 'air.mcap'}",
+                *common,
+            ],
             env=_env(),
             cwd=REPO,
             stdout=(folder / "air.log").open("wb"),
@@ -284,6 +297,11 @@ def split(tmp_path_factory: pytest.TempPathFactory) -> Split:
         ):  # SIGTERM: the launcher stops its services, the recorder closes its file
             hosts.stop(proc, timeout_s=30)
         print("\nsplit figures:", json.dumps(result.figures, indent=1))
+    # the chain of custody: the air recorder sealed its file as it closed, and the ground's pinned
+    # key (made by `atr certs`) verifies it intact
+    public = load_public_key(deploy.root / f"{seal_key_name(UAV)}.pub")
+    verdict = verify(folder / "air.mcap", public)
+    assert verdict.intact and verdict.sealed_messages > 0, verdict.lines()
 
 
 def _frames(records: list[tuple[str, int, bytes]]) -> dict[int, dict[str, Any]]:
