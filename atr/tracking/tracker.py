@@ -194,6 +194,15 @@ class Tracker:
             track.P_position = track.P_position + q_m2 * np.eye(3)
             track.yaw_var += q_yaw
 
+    def _far(self, track: Track, d: TrackInput) -> bool:
+        """Surely outside the position gate, without solving: r^T S^-1 r >= |r|^2 / trace(S), since
+        S's largest eigenvalue is at most its trace. Most pairs are far (clutter across a city), so
+        this keeps the cost of gating near one subtraction per pair; no pair it rejects could pass.
+        """
+        r = np.asarray(d.position_m, np.float64) - track.position_m
+        trace_S = float(np.trace(track.P_position)) + 3 * self.config.position_sigma_m**2
+        return float(r @ r) > self.config.k_gate**2 * trace_S
+
     def _gates(self, track: Track, d: TrackInput) -> tuple[float, float, bool]:
         """(squared position distance in sigmas, squared heading distance in sigmas, whether the
         heading is 180 degrees off the track's within the heading gate).
@@ -217,7 +226,7 @@ class Tracker:
         cost = np.full((len(self.tracks), len(detections)), _INFEASIBLE)
         for t, track in enumerate(self.tracks):
             for j, d in enumerate(detections):
-                if d.target != track.target:
+                if d.target != track.target or self._far(track, d):
                     continue
                 d2, h2, _ = self._gates(track, d)
                 if d2 <= c.k_gate**2 and h2 <= c.k_heading_gate**2:
@@ -258,7 +267,11 @@ class Tracker:
         for j, d in enumerate(detections):
             if j in used:
                 continue
-            at_place = [(t, self._gates(t, d)) for t in self.tracks if t.target == d.target]
+            at_place = [
+                (t, self._gates(t, d))
+                for t in self.tracks
+                if t.target == d.target and not self._far(t, d)
+            ]
             at_place = [(t, g) for t, g in at_place if g[0] <= c.k_gate**2]
             if at_place:
                 track, (_, _, flipped) = min(at_place, key=lambda tg: (tg[1][0], tg[0].id))

@@ -192,3 +192,22 @@ def test_from_pose_reads_the_heading():
     T = np.array([[c, -s, 0, 1], [s, c, 0, 2], [0, 0, 1, 3], [0, 0, 0, 1.0]])
     d = TrackInput.from_pose("t72", T)
     assert d.yaw_rad == pytest.approx(2.0) and d.position_m.tolist() == [1, 2, 3]
+
+
+def test_the_quick_far_test_never_rejects_a_pair_the_gate_accepts():
+    """Gating first rejects pairs by |r|^2 > k^2 trace(S) without a solve; that bound must never
+    drop a pair the exact Mahalanobis gate would take (else the fast tracker tracks differently)."""
+    rng = np.random.default_rng(11)
+    k2 = Tracker().config.k_gate**2
+    near_edge = 0
+    for _ in range(2000):
+        tracker = Tracker()
+        tracker.update([TrackInput("t72", rng.normal(0, 5, 3), 0.0)], 1)
+        (track,) = tracker.tracks
+        A = rng.normal(0, rng.uniform(0.05, 3.0), (3, 3))
+        track.P_position = A @ A.T  # any covariance the filter could reach
+        d = TrackInput("t72", track.position_m + rng.normal(0, rng.uniform(0.1, 10), 3), 0.0)
+        inside = tracker._gates(track, d)[0] <= k2
+        assert not (inside and tracker._far(track, d))
+        near_edge += inside
+    assert 100 < near_edge < 1900  # both sides of the gate were exercised
