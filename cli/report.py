@@ -26,6 +26,20 @@ from typing import Any
 
 import numpy as np
 
+from atr.evaluation.aggregate import (
+    DESCRIPTOR_LENGTH,
+    OBLIQUITY_CLASS,
+    PAPER_OBLIQUITY_F1,
+    PAPER_T_ERROR_MAX_M,
+    PAPER_TABLE_V_STORAGE_KB,
+    PAPER_TABLE_V_TIME_S,
+    arm_label,
+    compactness,
+    pool,
+    select,
+)
+from atr.evaluation.timing import REFERENCE_WORKLOAD
+
 REPO = Path(__file__).resolve().parents[1]
 PIPELINE_ORDER = ("gftt-sfm", "surf-sfm", "sgm-sfm", "lidar", "2d-1", "2d-2", "2d-3", "2d-4")
 NAMES = {
@@ -522,31 +536,13 @@ def _examples_section(figs: Figures, recording: Path) -> list[str]:
     ]
 
 
-def build_report(
+def _header_section(
+    clean: Sequence[Mapping[str, Any]],
     details: Sequence[Mapping[str, Any]],
     configs: Sequence[Mapping[str, Any]],
-    out: Path,
-    example: Path | None = None,
-) -> str:
-    """Build the report's Markdown (figures written into `out`); `configs` of every result; Fig. 7 from the
-    recorded flight `example` when given.
-    """
-    from atr.evaluation.aggregate import (
-        DESCRIPTOR_LENGTH,
-        OBLIQUITY_CLASS,
-        PAPER_OBLIQUITY_F1,
-        PAPER_T_ERROR_MAX_M,
-        PAPER_TABLE_V_STORAGE_KB,
-        PAPER_TABLE_V_TIME_S,
-        arm_label,
-        compactness,
-        pool,
-        select,
-    )
-    from atr.evaluation.timing import REFERENCE_WORKLOAD
-
-    figs = Figures(out)
-    clean = select(details, noise="none")
+    figs: Figures,
+) -> list[str]:
+    """The report's the title, how the result was made, and what it covers."""
     seeds = sorted({r["seed"] for r in details})
     scenes = sum(r["scenes"] for r in clean) // max(1, len({arm_label(r) for r in clean}))
     parts: list[str] = ["# Evaluation: the paper's experiments on our simulated flights", ""]
@@ -586,6 +582,12 @@ def build_report(
     if figs.plt is None:
         parts.append("\n**matplotlib is not installed: figures were not drawn** (tables only).\n")
 
+    return parts
+
+
+def _range_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> list[str]:
+    """The report's F1 per UAV–target range (Fig. 4)."""
+    parts: list[str] = []
     # Fig. 4: range
     by_range = _f1_by(clean, lambda r: f"{int(r['range_m'])} m (scenario {r['scenario']})")
     parts += [
@@ -600,6 +602,12 @@ def build_report(
             {k: {a: v["f1"] for a, v in g.items()} for k, g in by_range.items()},
         ),
     ]
+    return parts
+
+
+def _obliquity_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> list[str]:
+    """The report's F1 per obliquity (Fig. 5), and the best per method beside §III-D-2."""
+    parts: list[str] = []
     # Fig. 5: obliquity
     by_obl = _f1_by(clean, lambda r: f"{int(r['obliquity_deg'])} deg")
     parts += [
@@ -656,6 +664,14 @@ def build_report(
         "",
         "Intervals: bootstrap over the scenes (see below, under Overall F1).",
     ]
+    return parts
+
+
+def _overall_section(
+    clean: Sequence[Mapping[str, Any]], figs: Figures, example: Path | None
+) -> list[str]:
+    """The report's overall F1 with intervals, the differences that are real, the false positives, and Fig. 7's examples."""
+    parts: list[str] = []
     # Fig. 6: overall
     overall = pool(clean, arm_label)
     outcomes = _scene_outcomes(clean)
@@ -690,6 +706,12 @@ def build_report(
     ]
     if example is not None:
         parts += ["", *_examples_section(figs, example)]
+    return parts
+
+
+def _terror_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> list[str]:
+    """The report's translation error of the true positives (Fig. 9)."""
+    parts: list[str] = []
     # Fig. 9: translation error
     s3 = select(clean, scenario=3)
     terr_rows = s3 if s3 else clean
@@ -729,6 +751,13 @@ def build_report(
             "metres",
         ),
     ]
+    return parts
+
+
+def _compactness_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> list[str]:
+    """The report's compactness = F1 / descriptor length (Fig. 10)."""
+    overall = pool(clean, arm_label)
+    parts: list[str] = []
     # Fig. 10: compactness
     parts += [
         "",
@@ -759,6 +788,12 @@ def build_report(
             ylim=None,
         ),
     ]
+    return parts
+
+
+def _noise_section(details: Sequence[Mapping[str, Any]], figs: Figures) -> list[str]:
+    """The report's robustness to shot and Gaussian noise (Figs. 11, 12)."""
+    parts: list[str] = []
     # Figs. 11-12: noise
     noises = sorted({r["noise"] for r in details})
     if len(noises) > 1:
@@ -798,6 +833,13 @@ def build_report(
             "",
             "Not run in this evaluation (no `--noise`).",
         ]
+    return parts
+
+
+def _requirements_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> list[str]:
+    """The report's template storage and processing time (Table V, Fig. 8)."""
+    overall = pool(clean, arm_label)
+    parts: list[str] = []
     # Table V and Fig. 8
     v_rows = []
     stages = {}
@@ -860,6 +902,30 @@ def build_report(
         "computed before it was recorded).",
         "",
         figs.stacked("fig8_stages", "Processing time per stage (Fig. 8)", stages),
+    ]
+    return parts
+
+
+def build_report(
+    details: Sequence[Mapping[str, Any]],
+    configs: Sequence[Mapping[str, Any]],
+    out: Path,
+    example: Path | None = None,
+) -> str:
+    """Build the report's Markdown (figures written into `out`); `configs` of every result; Fig. 7 from the
+    recorded flight `example` when given. Each section is a function of its own, in the report's order.
+    """
+    figs = Figures(out)
+    clean = select(details, noise="none")
+    parts = [
+        *_header_section(clean, details, configs, figs),
+        *_range_section(clean, figs),
+        *_obliquity_section(clean, figs),
+        *_overall_section(clean, figs, example),
+        *_terror_section(clean, figs),
+        *_compactness_section(clean, figs),
+        *_noise_section(details, figs),
+        *_requirements_section(clean, figs),
     ]
     discussion = out / "discussion.md"
     if discussion.exists():
