@@ -198,7 +198,7 @@ def test_the_quick_far_test_never_rejects_a_pair_the_gate_accepts():
     """Gating first rejects pairs by |r|^2 > k^2 trace(S) without a solve; that bound must never
     drop a pair the exact Mahalanobis gate would take (else the fast tracker tracks differently)."""
     rng = np.random.default_rng(11)
-    k2 = Tracker().config.k_gate**2
+    k2 = Tracker().config.k_gate ** 2
     near_edge = 0
     for _ in range(2000):
         tracker = Tracker()
