@@ -62,6 +62,7 @@ class PoseTrack:
         self._poses: dict[int, tuple[int, np.ndarray]] = {}  # frame_seq -> (stamp_ns, T_world_cam)
         self._last_frame: int | None = None
         self._lost: str | None = None  # why the track waits for a navigation fix
+        self._last_answer: FramePose | None = None  # the last frame's pose and pair, as answered
 
     def add_batch(
         self,
@@ -128,7 +129,18 @@ class PoseTrack:
             self._poses[frame] = (stamp, self._integrator.camera_pose(stamp))
         for old in [f for f in self._poses if f <= frame - self._gap]:
             del self._poses[old]
+        self._last_answer = out
         return out
+
+    def last_answer(self, frame_seq: int, stamp_ns: int) -> FramePose | None:
+        """The answer given to frame `frame_seq` of stamp `stamp_ns`, if it was the last one: what a
+        process restarted from a checkpoint puts again for a batch sent again (its predecessor may
+        have died before its answer left).
+        """
+        last = self._last_answer
+        if last is None or (last.frame_seq, last.stamp_ns) != (int(frame_seq), int(stamp_ns)):
+            return None
+        return last
 
     def _is_repeat(self, frame: int, stamp: int, has_init: bool) -> bool:
         if self._last_frame is None or frame > self._last_frame:
@@ -154,6 +166,9 @@ class PoseTrack:
             "poses": [[f, s, T] for f, (s, T) in sorted(self._poses.items())],
             "last_frame": self._last_frame,
             "lost": self._lost,
+            "last_answer": None
+            if self._last_answer is None
+            else list(_answer_fields(self._last_answer)),
         }
 
     @classmethod
@@ -175,7 +190,32 @@ class PoseTrack:
         last = state["last_frame"]
         track._last_frame = None if last is None else int(last)
         track._lost = state["lost"]
+        answer = state.get("last_answer")
+        track._last_answer = None if answer is None else _answer(answer)
         return track
+
+
+def _answer_fields(pose: FramePose) -> tuple[Any, ...]:
+    return (
+        pose.frame_seq,
+        pose.stamp_ns,
+        pose.T_world_cam,
+        pose.frame_seq_t,
+        pose.stamp_ns_t,
+        pose.T_world_cam_t,
+    )
+
+
+def _answer(fields: list[Any]) -> FramePose:
+    frame, stamp, T, frame_t, stamp_t, T_t = fields
+    return FramePose(
+        int(frame),
+        int(stamp),
+        np.array(T, np.float64),
+        None if frame_t is None else int(frame_t),
+        None if stamp_t is None else int(stamp_t),
+        None if T_t is None else np.array(T_t, np.float64),
+    )
 
 
 def nav_state(stamp_ns: int, init: dict[str, Any]) -> NavState:

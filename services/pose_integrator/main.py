@@ -67,9 +67,13 @@ def main(argv: list[str] | None = None) -> int:
                 finally:
                     node.save_state(track.state_dict())
                 if pose is None:
-                    # a repeated batch (sent again after a restart downstream): the same answer again
-                    node.republish(keys.camera_pose(args.uav), stamp)
-                    node.republish(keys.relative_pose(args.uav), stamp)
+                    # a repeated batch (sent again after a restart downstream): the same answer again;
+                    # a process restarted from a checkpoint has not sent it yet, so it answers anew
+                    sent = node.republish(keys.camera_pose(args.uav), stamp)
+                    sent = node.republish(keys.relative_pose(args.uav), stamp) or sent
+                    last = track.last_answer(int(batch["frame_seq"]), stamp)
+                    if not sent and last is not None:
+                        _publish(node, args.uav, config.imu.integration, last)
                     continue
                 _publish(node, args.uav, config.imu.integration, pose)
                 node.timing(message.seq, stamp, {"integrate": 1e3 * (time.perf_counter() - t0)})

@@ -86,3 +86,21 @@ def test_a_repeated_batch_with_a_navigation_fix_is_a_repeat_but_an_earlier_fix_a
     assert track.add_batch(*b1, fix1) is None  # a repeat of the last batch, `init` included
     again = track.add_batch(f, stamp, t, g, a, fix)  # frame 0 again: a new flight starts
     assert again is not None and again.frame_seq_t is None
+
+
+def test_a_process_restored_after_its_last_batch_can_answer_that_batch_again():
+    """Killed after its checkpoint and before its answer left: the restored track knows the batch
+    (no second integration) and still holds the answer to put again, identical."""
+    rng = np.random.default_rng(3)
+    track = PoseTrack(ImuConfig(), gap=1)
+    start(track, rng)
+    b1 = batch(1, rng)
+    answer = track.add_batch(*b1)
+    saved = codec.unpack(codec.pack(track.state_dict()))
+    restored = PoseTrack.from_state_dict(ImuConfig(), saved)
+    assert restored.add_batch(*b1) is None
+    again = restored.last_answer(b1[0], b1[1])
+    assert again is not None and again.frame_seq_t == answer.frame_seq_t == 0
+    assert np.array_equal(again.T_world_cam, answer.T_world_cam)
+    assert np.array_equal(again.T_world_cam_t, answer.T_world_cam_t)
+    assert restored.last_answer(0, b1[1]) is None  # only the last frame's
