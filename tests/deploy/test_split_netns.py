@@ -304,6 +304,14 @@ def split(tmp_path_factory: pytest.TempPathFactory) -> Split:
     assert verdict.intact and verdict.sealed_messages > 0, verdict.lines()
 
 
+def _best_effort_gap(event: dict[str, Any]) -> bool:
+    """A recorder's report of a sequence gap on a Status or Timing key (published with DROP)."""
+    reason = str(event.get("reason", ""))
+    return event["key"].endswith("/recorder/errors") and any(
+        f"/{kind} from " in reason for kind in ("status", "timing")
+    )
+
+
 def _frames(records: list[tuple[str, int, bytes]]) -> dict[int, dict[str, Any]]:
     """Per frame stamp: its truth and detections as recorded on the ground."""
     frames: dict[int, dict[str, Any]] = {}
@@ -405,7 +413,13 @@ def test_flight_over_impaired_link(split: Split) -> None:
         assert code == 0, (split.folder / "source.log").read_text()[-3000:]
         figures = _flight_figures(split, start, end, frames, link_before, veth_before)
         _check_complete(figures, frames)
-        errors = [e for e in split.watch.since(start) if e["key"].endswith("/errors")]
+        # Status and Timing are published best-effort (DROP: a heartbeat never holds a service up),
+        # so on a throttled link the recorder may rightly report gaps in them; nothing else may fail
+        errors = [
+            e
+            for e in split.watch.since(start)
+            if e["key"].endswith("/errors") and not _best_effort_gap(e)
+        ]
         assert not errors, errors
         split.figures["impaired"] = {k: v for k, v in figures.items() if k != "records"}
     finally:
