@@ -280,6 +280,17 @@ def flight_scenes(path: Path, uav: str = "uav1") -> list[tuple[dict | None, dict
     return [(truth.get(d["stamp_ns"]), d, camera_pose.get(d["stamp_ns"])) for d in detections]
 
 
+def flight_tracks(path: Path, uav: str = "uav1") -> dict[int, dict]:
+    """The Tracks message of each scene of a recording (services/tracker), keyed by its stamp_ns."""
+    from bus import codec, keys
+    from bus.mcap_tools import iter_messages
+
+    return {
+        (data := codec.unpack(message.data))["stamp_ns"]: data
+        for _, message in iter_messages(path, topics=[keys.tracks(uav)])
+    }
+
+
 def flight_clouds(path: Path, uav: str = "uav1") -> dict[int, np.ndarray]:
     """The SfM cloud of each frame of a recording, keyed by its stamp_ns: (N, 3) float32 world positions."""
     from bus import codec, keys

@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     """Fly, print per-scene results and the F1; 0 when every process stayed up."""
     from bus.launcher import interrupt_on_signals
     from bus.pipeline import check_output, fly_layout
-    from cli.flight_report import FlightPrinter, f1_line, summarise
+    from cli.flight_report import FlightPrinter, f1_line, summarise, summarise_tracks, track_line
 
     if args.run is None:
         args.run = demo_run(args.scenario)
@@ -86,6 +86,9 @@ def run(args: argparse.Namespace) -> int:
     counts = summarise(out)
     if counts is not None:
         print("\n" + f1_line(counts))
+        tracks = summarise_tracks(out)
+        if tracks is not None:
+            print(track_line(tracks))
     print(f"recording: {out}")
     from bus.foxglove_export import export_foxglove
 

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from atr.evaluation.metrics import Counts, SceneScore, count
+from atr.evaluation.metrics import Counts, SceneScore, TrackScore, count, score_tracks
 from atr.evaluation.scoring import score_record
 from bus.evaluation import scene_record
 
@@ -93,6 +93,55 @@ def summarise(path: Path) -> Counts | None:
     if all(t is None for t, _, _ in scenes):
         return None
     return count([score(t, d, c) for t, d, c in scenes])
+
+
+def summarise_tracks(path: Path) -> TrackScore | None:
+    """The track-level figures of a recorded simulated flight (its tracker's Tracks messages), judged as
+    `atr eval` judges tracks (`atr.evaluation.metrics.score_tracks`): per scene the target's confirmed and
+    lost tracks, placed relative to the sensor as detections are; None without truth or without tracks.
+    """
+    from bus.pipeline import flight_scenes, flight_tracks
+
+    tracks_by_stamp = flight_tracks(path)
+    scenes = [(t, d, c) for t, d, c in flight_scenes(path) if is_scene(d) and t is not None]
+    if not scenes or not tracks_by_stamp:
+        return None
+    truth, tracks = [], []
+    for t, d, c in scenes:
+        record = scene_record(t, d, c)
+        truth.append([np.asarray(p["position_m"]) for p in record.truth if p["name"] == TARGET])
+        established = [
+            track
+            for track in tracks_by_stamp.get(d["stamp_ns"], {}).get("tracks", [])
+            if track["target"] == TARGET and track["state"] != "tentative"
+        ]
+        established.sort(key=lambda track: (-track["hits"], track["id"]))
+        tracks.append(
+            [
+                (track["id"], record.sensor_relative(np.asarray(track["T_world_target"])[:3, 3]))
+                for track in established
+            ]
+        )
+    return score_tracks(truth, tracks)
+
+
+def track_line(score: TrackScore) -> str:
+    """The flight's confirmed tracks in one line, beside the paper's per-scene F1."""
+    counts = score.counts
+    confirm = (
+        f"confirmed on the target's scene {score.scenes_to_confirm:.0f}"
+        if np.isfinite(score.scenes_to_confirm)
+        else "the target never confirmed"
+    )
+    error = (
+        f", fused error {score.t_error_median_m:.2f} m (median)"
+        if np.isfinite(score.t_error_median_m)
+        else ""
+    )
+    return (
+        f"tracks: F1 {counts.f1:.3f} (TP {counts.tp}, FP {counts.fp}, FN {counts.fn}), "
+        f"{score.false_tracks} false confirmed tracks, {confirm}{error}"
+    )
 
 
 def f1_line(counts: Counts) -> str:

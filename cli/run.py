@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from atr.errors import ConfigError
     from bus.launcher import interrupt_on_signals
     from bus.pipeline import check_output, run_recording
-    from cli.flight_report import f1_line, summarise
+    from cli.flight_report import f1_line, summarise, summarise_tracks, track_line
 
     # run_recording checks the input, the layout and the overrides before anything starts
     for flag, value in (
@@ -66,6 +66,9 @@ def run(args: argparse.Namespace) -> int:
     counts = summarise(args.out) if result.frames and not result.failures else None
     if counts is not None:  # a simulated flight: judged against its truth as `atr eval` judges it
         print(f1_line(counts))
+        tracks = summarise_tracks(args.out)
+        if tracks is not None:
+            print(track_line(tracks))
     for name, codes in result.failures.items():
         print(
             f"process {name} failed with exit codes {codes}; see {result.log_dir / (name + '.log')}"

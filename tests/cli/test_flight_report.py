@@ -9,7 +9,7 @@ from mcap.writer import Writer
 
 from bus import codec, keys
 from bus.pipeline import flight_scenes
-from cli.flight_report import scene_line, score, summarise
+from cli.flight_report import scene_line, score, summarise, summarise_tracks, track_line
 
 STAMP_NS = 2_000_000_000
 TARGET_M = np.array([50.0, 0.0, 0.0])
@@ -138,3 +138,57 @@ def test_nothing_to_judge_gives_no_counts(tmp_path: Path):
     unanswered = tmp_path / "unanswered.mcap"  # the pipeline never answered a pair
     write_recording(unanswered, [(keys.truth("uav1"), truth)])
     assert summarise(unanswered) is None
+
+
+def tracks_message(state: str, T_world_target: np.ndarray) -> dict:
+    """The tracker's answer to the scene: one track of the target in the given state."""
+    return {
+        "stamp_ns": STAMP_NS,
+        "seq": 1,
+        "version": 1,
+        "detections_seq": 1,
+        "tracks": [
+            {
+                "id": 7,
+                "target": "t72",
+                "state": state,
+                "T_world_target": T_world_target,
+                "covariance": np.eye(4),
+                "yaw_ambiguous": False,
+                "hits": 3,
+                "supporting_stamps_ns": [STAMP_NS],
+                "first_seen_ns": STAMP_NS,
+                "last_seen_ns": STAMP_NS,
+            }
+        ],
+    }
+
+
+def test_recorded_tracks_are_judged_relative_to_the_sensor_and_only_once_established(
+    tmp_path: Path,
+):
+    truth, detections, camera_pose = messages("sfm-gftt", seen_through_the_estimated_pose())
+    scene = [
+        (keys.truth("uav1"), truth),
+        (keys.camera_pose("uav1"), camera_pose),
+        (keys.detections("uav1"), detections),
+    ]
+    for state, outcome in [("confirmed", (1, 0, 0)), ("lost", (1, 0, 0)), ("tentative", (0, 0, 1))]:
+        path = tmp_path / f"{state}.mcap"
+        track = tracks_message(state, seen_through_the_estimated_pose())
+        write_recording(path, [*scene, (keys.tracks("uav1"), track)])
+        result = summarise_tracks(path)
+        assert (result.counts.tp, result.counts.fp, result.counts.fn) == outcome, state
+        assert result.false_tracks == 0
+    # a confirmed track 5 m off the target is a false track and an FP, and the line says so
+    off = seen_through_the_estimated_pose() @ pose(np.array([5.0, 0.0, 0.0]))
+    path = tmp_path / "off.mcap"
+    write_recording(path, [*scene, (keys.tracks("uav1"), tracks_message("confirmed", off))])
+    result = summarise_tracks(path)
+    assert (result.counts.tp, result.counts.fp, result.false_tracks) == (0, 1, 1)
+    assert "1 false confirmed tracks" in track_line(result)
+    assert "never confirmed" in track_line(result)
+    # a flight without a tracker has no track figures
+    path = tmp_path / "untracked.mcap"
+    write_recording(path, scene)
+    assert summarise_tracks(path) is None

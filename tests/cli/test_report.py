@@ -18,6 +18,7 @@ from cli.report import (
     _false_positives_section,
     _scene_outcomes,
     _time_vs_reference,
+    _tracks_section,
     example_scenes,
 )
 
@@ -177,3 +178,32 @@ def test_time_over_the_reference_is_pooled_by_scenes_and_skips_rows_without_one(
     ]
     assert _time_vs_reference(rows) == (60.0 * 30 + 15.0 * 10) / 40
     assert _time_vs_reference(rows[2:]) is None
+
+
+def test_tracks_are_pooled_per_arm_beside_the_per_scene_f1_and_run_by_run():
+    def row(run: int, outcomes: list[str], track: tuple[int, int, int], false: int, confirm: float):
+        return {
+            **_run_row("sgm-sfm", "shot", run, outcomes),
+            "t_errors_m": [0.2] * outcomes.count("tp"),
+            **dict(zip(("track_tp", "track_fp", "track_fn"), track, strict=True)),
+            "false_tracks": false,
+            "scenes_to_confirm": confirm,
+            "track_t_error_median_m": 0.1 * run,
+        }
+
+    rows = [
+        row(1, ["tp"] * 9 + ["fp"], (8, 0, 2), 0, 2.0),
+        row(2, ["tp"] * 10, (9, 0, 1), 1, float("nan")),  # a run that never confirmed
+        {**_run_row("lidar", "shot", 1, ["tp"])},  # a result without track fields: no row
+    ]
+    text = "\n".join(_tracks_section(rows))
+    lines = [line for line in text.splitlines() if line.startswith("| sgm")]
+    overall, per_run = (line.strip("| ").split(" | ") for line in lines)
+    # counts are summed before F1: scenes 19/1/0, tracks 17/0/3 -> 2*17 / (2*17 + 3)
+    assert overall[1] == "97.4%" and overall[2] == "91.9% (17/0/3)"
+    assert overall[3] == "5.0"  # one false track in 20 scenes
+    assert overall[4] == "2"  # the run that never confirmed has no figure to pool
+    assert overall[5:] == ["0.20", "0.15"]
+    assert per_run == ["sgm-sfm/shot", "94.7% / 88.9%", "100.0% / 94.7%"]
+    assert "| lidar" not in text
+    assert _tracks_section(rows[2:]) == []
