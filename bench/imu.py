@@ -124,10 +124,8 @@ def bench_accuracy() -> None:
     imu = read_imu(root)
     gt = read_groundtruth(root / "groundtruth" / "V1_01_easy.csv")
     noise = read_imu_noise(root)
-    args = (imu.t_ns, imu.gyro_radps, imu.accel_mps2, gt.t_ns, gt.R_world_body, gt.p_world_m,
-            gt.v_world_mps, gt.gyro_bias_radps, gt.accel_bias_mps2)  # fmt: skip
     moved = np.linalg.norm(gt.p_world_m - gt.p_world_m[0], axis=1) > 0.005
-    ge = ground_truth_errors(*args, int(gt.t_ns[int(np.argmax(moved)) - 1]))
+    ge = ground_truth_errors(imu, gt, int(gt.t_ns[int(np.argmax(moved)) - 1]))
     print(f"\nground truth at rest: {ge}")
     starts = np.nonzero(np.linalg.norm(gt.v_world_mps, axis=1) > 0.2)[0][::5]
     print(
@@ -138,7 +136,7 @@ def bench_accuracy() -> None:
     for mode in ("strapdown", "paper"):
         for w in (0.05, 0.5, 1.0):
             cfg = ImuConfig(integration=mode)
-            e = window_errors(*args, starts, w, config=cfg)
+            e = window_errors(imu, gt, starts, w, config=cfg)
             rb, tb = error_bound(w, noise.gyro_noise_density, noise.accel_noise_density, ge,
                                  cfg.gravity_mps2)  # fmt: skip
             r = np.degrees(np.percentile(e.rotation_error_rad, [50, 90, 100]))

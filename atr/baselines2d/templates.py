@@ -17,6 +17,7 @@ from atr.baselines2d.config import Baseline2dConfig
 from atr.baselines2d.features import Features2d, detect_and_describe
 from atr.errors import InputError
 from atr.sim.config import SimConfig
+from atr.sim.flight import true_imu_pose
 from atr.sim.mesh import Mesh
 from atr.sim.render import Renderer, to_srgb8
 from atr.sim.scenarios import scenario as scenario_preset
@@ -73,10 +74,7 @@ def project(points_world_m: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray) 
 
 
 def _frame_pose(world: World, cfg: SimConfig, t_s: float) -> np.ndarray:
-    st = world.orbit.state(np.array([t_s]))
-    T_world_imu = np.eye(4)
-    T_world_imu[:3, :3] = st.R_world_imu[0]
-    T_world_imu[:3, 3] = st.p_world[0]
+    T_world_imu, _ = true_imu_pose(world.orbit, t_s)
     return T_world_imu @ cfg.T_imu_cam_matrix
 
 

@@ -296,6 +296,50 @@ def _share_the_cores(workers: int) -> None:
     cv2.setNumThreads(threads)
 
 
+@dataclass
+class _Runs:
+    """The runs an invocation computes, and what it has computed so far: each flight's finished arms are
+    saved to the run cache as they come, with a line of progress.
+    """
+
+    plan: Plan
+    keys: dict[tuple[Flight, Arm], str]
+    todo: dict[Flight, list[Arm]]
+    results: dict[tuple[Flight, Arm], list[SceneRecord]]
+    progress: Progress
+    started: float = field(default_factory=time.monotonic)
+    done: int = 0
+
+    def finish(
+        self, flight: Flight, out: dict[Arm, list[SceneRecord]], reference_ms: float
+    ) -> None:
+        """Keep and save one flight's records, and say how far the invocation is."""
+        self.plan.reference_ms[flight] = reference_ms
+        for arm, records in out.items():
+            key = self.keys[(flight, arm)]
+            save_run(
+                self.plan.results / "runs" / f"{key}.json",
+                flight,
+                arm,
+                key,
+                records,
+                {
+                    "storage_kb": self.plan.storage_kb.get(storage_key(arm)),
+                    "reference_ms": reference_ms,
+                },
+            )
+            self.results[(flight, arm)] = records
+        self.done += 1
+        elapsed = time.monotonic() - self.started
+        eta = elapsed / self.done * (len(self.todo) - self.done)
+        bar = "#" * (20 * self.done // len(self.todo))
+        self.progress(
+            f"[{bar:<20}] {self.done}/{len(self.todo)} flights  scenario {flight.scenario} run "
+            f"{flight.run} noise {flight.noise}: {len(out)} runs, {elapsed:.0f} s elapsed, "
+            f"~{eta:.0f} s left"
+        )
+
+
 def execute(
     plan_: Plan,
     *,
@@ -321,19 +365,12 @@ def execute(
         AtrError: the service graph failed on a flight (via_services).
 
     """
-    runs_dir = plan_.results / "runs"
-    results: dict[tuple[Flight, Arm], list[SceneRecord]] = {}
-    todo: dict[Flight, list[Arm]] = {}
-    keys: dict[tuple[Flight, Arm], str] = {}
-    for flight in plan_.flights:
-        for arm in plan_.arms:
-            key = keys[(flight, arm)] = _key(plan_, flight, arm, via_services is not None)
-            records = None if force else load_run(runs_dir / f"{key}.json", key)
-            if records is None:
-                todo.setdefault(flight, []).append(arm)
-            else:
-                results[(flight, arm)] = records
-                _reuse_extra(plan_, flight, arm, runs_dir / f"{key}.json")
+    keys = {
+        (flight, arm): _key(plan_, flight, arm, via_services is not None)
+        for flight in plan_.flights
+        for arm in plan_.arms
+    }
+    results, todo = _current(plan_, keys, force)
     total = len(plan_.flights) * len(plan_.arms)
     progress(
         f"atr eval: {total} runs ({len(plan_.flights)} flights x {len(plan_.arms)} pipelines/descriptors), "
@@ -343,71 +380,67 @@ def execute(
         return results
     _templates_3d(plan_)
     _templates_2d(plan_, progress)
-    started = time.monotonic()
-    done = 0
-
-    def finish(flight: Flight, out: dict[Arm, list[SceneRecord]], reference_ms: float) -> None:
-        nonlocal done
-        plan_.reference_ms[flight] = reference_ms
-        for arm, records in out.items():
-            save_run(
-                runs_dir / f"{keys[(flight, arm)]}.json",
-                flight,
-                arm,
-                keys[(flight, arm)],
-                records,
-                {
-                    "storage_kb": plan_.storage_kb.get(storage_key(arm)),
-                    "reference_ms": reference_ms,
-                },
-            )
-            results[(flight, arm)] = records
-        done += 1
-        elapsed = time.monotonic() - started
-        eta = elapsed / done * (len(todo) - done)
-        bar = "#" * (20 * done // len(todo))
-        progress(
-            f"[{bar:<20}] {done}/{len(todo)} flights  scenario {flight.scenario} run {flight.run} "
-            f"noise {flight.noise}: {len(out)} runs, {elapsed:.0f} s elapsed, ~{eta:.0f} s left"
-        )
-
+    runs = _Runs(plan_, keys, todo, results, progress)
     if via_services is not None:
-        workdir = plan_.results / "services"
-        for flight, arms in todo.items():
-            reference_ms = reference_workload_ms()
-            finish(flight, via_services(flight, arms, plan_, workdir), reference_ms)
-        return results
-    if jobs <= 1:
-        for flight, arms in todo.items():
-            finish(
-                flight,
-                *_work_in_process(
-                    flight, arms, plan_.config, plan_.templates_3d, plan_.templates_2d, plan_.b2d
-                ),
-            )
-        return results
+        _run_via_services(runs, via_services)
+    elif jobs <= 1:
+        _run_here(runs)
+    else:
+        _run_in_workers(runs, jobs)
+    return results
+
+
+def _current(
+    plan_: Plan, keys: dict[tuple[Flight, Arm], str], force: bool
+) -> tuple[dict[tuple[Flight, Arm], list[SceneRecord]], dict[Flight, list[Arm]]]:
+    """The results the run cache holds for the current code and configuration (none when forced), and
+    per flight the arms left to compute.
+    """
+    runs_dir = plan_.results / "runs"
+    results: dict[tuple[Flight, Arm], list[SceneRecord]] = {}
+    todo: dict[Flight, list[Arm]] = {}
+    for (flight, arm), key in keys.items():
+        records = None if force else load_run(runs_dir / f"{key}.json", key)
+        if records is None:
+            todo.setdefault(flight, []).append(arm)
+        else:
+            results[(flight, arm)] = records
+            _reuse_extra(plan_, flight, arm, runs_dir / f"{key}.json")
+    return results, todo
+
+
+def _run_via_services(runs: _Runs, via_services: ViaServices) -> None:
+    workdir = runs.plan.results / "services"
+    for flight, arms in runs.todo.items():
+        reference_ms = reference_workload_ms()
+        runs.finish(flight, via_services(flight, arms, runs.plan, workdir), reference_ms)
+
+
+def _run_here(runs: _Runs) -> None:
+    p = runs.plan
+    for flight, arms in runs.todo.items():
+        out = _work_in_process(flight, arms, p.config, p.templates_3d, p.templates_2d, p.b2d)
+        runs.finish(flight, *out)
+
+
+def _run_in_workers(runs: _Runs, jobs: int) -> None:
     # spawn, not fork: the parent already runs OpenMP/numba threads (template building), and a fork of such a
-    # process is unsafe (GNU OpenMP terminates it).
+    # process is unsafe (GNU OpenMP terminates it). Fewer flights than jobs: fewer workers share the cores.
+    workers = min(jobs, len(runs.todo))
     with ProcessPoolExecutor(
         max_workers=jobs,
         mp_context=multiprocessing.get_context("spawn"),
         initializer=_share_the_cores,
-        initargs=(min(jobs, len(todo)),),  # fewer flights than jobs: fewer workers share the cores
+        initargs=(workers,),
     ) as pool:
+        p = runs.plan
         pending = {
             pool.submit(
-                _work_in_process,
-                flight,
-                arms,
-                plan_.config,
-                plan_.templates_3d,
-                plan_.templates_2d,
-                plan_.b2d,
+                _work_in_process, flight, arms, p.config, p.templates_3d, p.templates_2d, p.b2d
             ): flight
-            for flight, arms in todo.items()
+            for flight, arms in runs.todo.items()
         }
         while pending:
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
-                finish(pending.pop(future), *future.result())
-    return results
+                runs.finish(pending.pop(future), *future.result())

@@ -16,7 +16,7 @@ A scene is a frame k >= gap (a frame that has an SfM partner); every pipeline is
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -32,8 +32,11 @@ from atr.imu.pose_track import FramePose, PoseTrack
 from atr.recognition import DESCRIPTORS, Template, recognize
 from atr.sfm import reconstruct
 from atr.sfm.pairing import FramePairer, Pair
-from atr.sim.flight import SensorFrame, simulate_flight
+from atr.sim.config import SimConfig
+from atr.sim.flight import FlightSimulator, SensorFrame
+from atr.sim.noise import parse_noise
 from atr.sim.scenarios import scenario as scenario_preset
+from atr.sim.world import World, build_world
 
 SFM_PIPELINES: dict[str, str] = {"gftt-sfm": "gftt", "surf-sfm": "surf", "sgm-sfm": "sgm"}
 """SfM pipelines and their `sfm.matcher`."""
@@ -252,31 +255,40 @@ def initial_nav_state(frame: SensorFrame) -> NavState:
     )
 
 
-def flight_frames(flight: Flight, config: AtrConfig, lidar: bool) -> Iterable[SensorFrame]:
+def flight_world(flight: Flight, sim_config: SimConfig) -> World:
+    """The flight's world (its target and confuser meshes read from their files), as `atr simulate` builds it."""
+    from atr.io.mesh import load_mesh  # Open3D file readers only when a file is given
+
+    return build_world(
+        scenario_preset(flight.scenario, flight.run),
+        flight.seed,
+        target_mesh=load_mesh(flight.target_mesh) if flight.target_mesh else None,
+        target_name=flight.target,
+        clutter_meshes=[load_mesh(p) for p in flight.clutter_meshes],
+        config=sim_config,
+    )
+
+
+def flight_frames(flight: Flight, config: AtrConfig, lidar: bool) -> Iterator[SensorFrame]:
     """The flight's simulated frames (what `atr simulate` records); with ``flight.every`` > 1 only the
     sampled scenes' frames are rendered (the others carry IMU and truth only).
     """
-    from atr.io.mesh import load_mesh  # Open3D file readers only when a file is given
-
-    target = load_mesh(flight.target_mesh) if flight.target_mesh else None
-    clutter = [load_mesh(p) for p in flight.clutter_meshes]
-    name = Path(flight.target_mesh).stem if flight.target_mesh else None
-    noise = None if flight.noise == "none" else flight.noise
-    gap = config.sfm.pair_gap_frames
-    render = None
-    if flight.every > 1:
-        render = lambda seq: flight.is_scene(seq, gap) or flight.is_scene(seq + gap, gap)  # noqa: E731
-    return simulate_flight(
+    sim = FlightSimulator(
         scenario_preset(flight.scenario, flight.run),
+        flight_world(flight, config.sim),
+        config.sim,
         seed=flight.seed,
         frames=flight.frames,
-        target_mesh=target,
-        clutter_meshes=clutter,
-        lidar=lidar,
-        noise=noise,
-        config=config.sim,
-        target_name=name,
-        render=render,
+    )
+    noise = parse_noise(flight.noise)  # "none": no noise
+    gap = config.sfm.pair_gap_frames
+
+    def rendered(seq: int) -> bool:  # a sampled scene's frame or its SfM partner
+        return flight.every == 1 or flight.is_scene(seq, gap) or flight.is_scene(seq + gap, gap)
+
+    return (
+        sim.frame(seq, lidar=lidar, noise=noise, rendered=rendered(seq))
+        for seq in range(sim.n_frames)
     )
 
 
@@ -306,6 +318,38 @@ def _recognize(
     )
 
 
+@dataclass(frozen=True)
+class _ArmInputs:
+    """What each arm needs besides the scene: its configuration and the templates it matches against."""
+
+    configs: Mapping[Arm, AtrConfig]
+    templates_3d: Mapping[str, Sequence[Template]]
+    templates_2d: Mapping[str, list[Template2d]]
+    baseline2d: Baseline2dConfig
+
+
+@dataclass
+class _Scene:
+    """One scene as every arm sees it: the frame, its truth, its SfM pair and integrated pose, and the
+    clouds reconstructed so far (one per SfM matcher, shared by the descriptors).
+    """
+
+    frame: SensorFrame
+    truth: list[dict[str, Any]]
+    pair: Pair | None
+    pose: FramePose
+    clouds: dict[str, tuple[Any, float]] = field(default_factory=dict)
+
+
+@dataclass
+class _Work:
+    """What an arm's processing of a scene has measured so far (kept when a stage raises)."""
+
+    t0: float
+    stages: dict[str, float] = field(default_factory=dict)
+    points: int = 0
+
+
 def run_flight(
     flight: Flight,
     arms: Sequence[Arm],
@@ -333,13 +377,13 @@ def run_flight(
         ConfigError: a 2D arm without templates, or a 3D arm without templates for its descriptor.
 
     """
-    b2d = baseline2d or Baseline2dConfig()
-    for arm in arms:
-        if arm.is_2d and (templates_2d is None or arm.pipeline not in templates_2d):
-            raise ConfigError(f"no 2D templates given for {arm.pipeline}")
-        if not arm.is_2d and arm.descriptor not in templates_3d:
-            raise ConfigError(f"no 3D templates given for descriptor {arm.descriptor}")
-    configs = {arm: arm_config(config, arm) for arm in arms}
+    _check_templates(arms, templates_3d, templates_2d)
+    inputs = _ArmInputs(
+        {arm: arm_config(config, arm) for arm in arms},
+        templates_3d,
+        templates_2d or {},
+        baseline2d or Baseline2dConfig(),
+    )
     gap = config.sfm.pair_gap_frames
     need_lidar = any(a.pipeline == "lidar" for a in arms)
     records: dict[Arm, list[SceneRecord]] = {a: [] for a in arms}
@@ -347,145 +391,166 @@ def run_flight(
     pairer = FramePairer(gap)  # what services/sfm runs
     source = frames if frames is not None else flight_frames(flight, config, need_lidar)
     for index, frame in enumerate(source):
-        k = frame.seq
         # the first batch carries the initial state; with nav_fix_every_frame every batch a fix
         fix = index == 0 or config.sim.nav_fix_every_frame
-        pose = track.add_batch(
-            k,
-            frame.stamp_ns,
-            frame.imu_t_ns.astype(np.int64),
-            frame.gyro_radps,
-            frame.accel_mps2,
-            initial_nav_state(frame) if fix else None,
-        )
-        # the service graph's order: the IMU batch, its relative pose, then the image
-        pairer.add_imu(k)
-        if pose.frame_seq_t is not None:
-            pairer.add_pair(
-                {
-                    "frame_seq_t": pose.frame_seq_t,
-                    "frame_seq_t1": k,
-                    "T_world_cam_t": pose.T_world_cam_t,
-                    "T_world_cam_t1": pose.T_world_cam,
-                }
-            )
-        answer = pairer.add_image(k, {"data": frame.image})
-        pair = answer if isinstance(answer, Pair) and answer.image_t is not None else None
-        if flight.is_scene(k, gap):
-            truth = truth_of(frame)
-            clouds: dict[
-                str, tuple[Any, float]
-            ] = {}  # one reconstruction per matcher, shared by descriptors
-            T_true = np.asarray(frame.T_world_cam, np.float64).tolist()
+        pose, pair = _pose_and_pair(track, pairer, frame, fix)
+        if flight.is_scene(frame.seq, gap):
+            scene = _Scene(frame, truth_of(frame), pair, pose)
             for arm in arms:
-                record = _scene(
-                    arm,
-                    configs[arm],
-                    frame,
-                    truth,
-                    pair,
-                    pose,
-                    templates_3d,
-                    templates_2d,
-                    b2d,
-                    clouds,
-                )
-                # SfM places its cloud with the integrated pose; LIDAR and 2D use the true one
-                uses_imu = not arm.is_2d and arm.pipeline != "lidar"
-                T_est = np.asarray(pose.T_world_cam, np.float64).tolist() if uses_imu else T_true
-                records[arm].append(replace(record, T_world_cam_true=T_true, T_world_cam_est=T_est))
+                records[arm].append(_scene_record(arm, inputs, scene))
     return records
 
 
-def _scene(
-    arm: Arm,
-    config: AtrConfig,
-    frame: SensorFrame,
-    truth: list[dict[str, Any]],
-    pair: Pair | None,
-    pose: FramePose,
+def _check_templates(
+    arms: Sequence[Arm],
     templates_3d: Mapping[str, Sequence[Template]],
     templates_2d: Mapping[str, list[Template2d]] | None,
-    b2d: Baseline2dConfig,
-    clouds: dict[str, tuple[Any, float]],
-) -> SceneRecord:
+) -> None:
+    for arm in arms:
+        if arm.is_2d and (templates_2d is None or arm.pipeline not in templates_2d):
+            raise ConfigError(f"no 2D templates given for {arm.pipeline}")
+        if not arm.is_2d and arm.descriptor not in templates_3d:
+            raise ConfigError(f"no 3D templates given for descriptor {arm.descriptor}")
+
+
+def _pose_and_pair(
+    track: PoseTrack, pairer: FramePairer, frame: SensorFrame, fix: bool
+) -> tuple[FramePose, Pair | None]:
+    """Feed one frame to the pose track and the frame pairer in the service graph's order (the IMU
+    batch, its relative pose, then the image); the frame's pose and its complete SfM pair, if any.
+    """
     k = frame.seq
-    t0 = time.perf_counter()
-    stages: dict[str, float] = {}
-    points = 0
+    pose = track.add_batch(
+        k,
+        frame.stamp_ns,
+        frame.imu_t_ns.astype(np.int64),
+        frame.gyro_radps,
+        frame.accel_mps2,
+        initial_nav_state(frame) if fix else None,
+    )
+    pairer.add_imu(k)
+    if pose.frame_seq_t is not None:
+        pairer.add_pair(
+            {
+                "frame_seq_t": pose.frame_seq_t,
+                "frame_seq_t1": k,
+                "T_world_cam_t": pose.T_world_cam_t,
+                "T_world_cam_t1": pose.T_world_cam,
+            }
+        )
+    answer = pairer.add_image(k, {"data": frame.image})
+    return pose, answer if isinstance(answer, Pair) and answer.image_t is not None else None
+
+
+def _scene_record(arm: Arm, inputs: _ArmInputs, scene: _Scene) -> SceneRecord:
+    """One arm's record of a scene, with the camera poses scoring carries its detections through."""
+    work = _Work(time.perf_counter())
     try:
-        if arm.is_2d:
-            result = recognize_2d(
-                frame.image,
-                frame.K,
-                frame.T_world_cam,
-                templates_2d[arm.pipeline],
-                arm.pipeline,
-                b2d,
-                seed=k,
-            )
-            detections = [
-                detection_dict(d.target, d.T_world_target, d.score) for d in result.detections
-            ]
-            stages = {
-                f"2d_{name}": ms for name, ms in result.stage_times_ms.items() if name != "total"
-            }
-        elif arm.pipeline == "lidar":
-            points = len(frame.lidar_points_m)
-            detections, rec = _recognize(
-                frame.lidar_points_m,
-                templates_3d[arm.descriptor],
-                config,
-                k,
-                frame.T_world_cam[:3, 3].astype(np.float64),
-            )
-            stages = {k_: v for k_, v in rec.items() if k_ != "total"}
-        else:
-            if config.sfm.matcher not in clouds:
-                if pair is None:
-                    raise InputError(f"frame {k} has no pair: no image or pose of its partner")
-                t_sfm = time.perf_counter()
-                cloud = reconstruct(
-                    pair.image_t["data"],
-                    pair.image_t1["data"],
-                    frame.K,
-                    pair.pose["T_world_cam_t"],
-                    pair.pose["T_world_cam_t1"],
-                    config.sfm,
-                    frame.dist_coeffs,
-                )
-                clouds[config.sfm.matcher] = (cloud, 1e3 * (time.perf_counter() - t_sfm))
-            cloud, sfm_ms = clouds[config.sfm.matcher]
-            # the scene's time is its reconstruction (done once, shared by the descriptors) + its matcher
-            t0 = time.perf_counter() - sfm_ms / 1e3
-            stages = {
-                f"sfm_{n[5:-2]}": 1e3 * v
-                for n, v in cloud.stats.items()
-                if n.startswith("time_") and n.endswith("_s")
-            }
-            points = len(cloud.points_world_m)
-            detections, rec = _recognize(
-                cloud.points_world_m,
-                templates_3d[arm.descriptor],
-                config,
-                k,
-                pose.T_world_cam[:3, 3],
-                cloud.sigma_m,
-            )
-            stages |= {k_: v for k_, v in rec.items() if k_ != "total"}
+        detections, error = _detect(arm, inputs, scene, work), None
     except (
         AtrError
     ) as exc:  # the service reports it on .../errors and gives no answer for this frame
-        return SceneRecord(
-            k,
-            frame.stamp_ns,
-            truth,
-            [],
-            1e3 * (time.perf_counter() - t0),
-            stages,
-            points,
-            f"{type(exc).__name__}: {exc}",
-        )
-    return SceneRecord(
-        k, frame.stamp_ns, truth, detections, 1e3 * (time.perf_counter() - t0), stages, points
+        detections, error = [], f"{type(exc).__name__}: {exc}"
+    frame = scene.frame
+    record = SceneRecord(
+        frame.seq,
+        frame.stamp_ns,
+        scene.truth,
+        detections,
+        1e3 * (time.perf_counter() - work.t0),
+        work.stages,
+        work.points,
+        error,
     )
+    # SfM places its cloud with the integrated pose; LIDAR and 2D use the true one
+    T_true = np.asarray(frame.T_world_cam, np.float64).tolist()
+    uses_imu = not arm.is_2d and arm.pipeline != "lidar"
+    T_est = np.asarray(scene.pose.T_world_cam, np.float64).tolist() if uses_imu else T_true
+    return replace(record, T_world_cam_true=T_true, T_world_cam_est=T_est)
+
+
+def _detect(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> list[dict[str, Any]]:
+    if arm.is_2d:
+        return _detect_2d(arm, inputs, scene, work)
+    if arm.pipeline == "lidar":
+        return _detect_lidar(arm, inputs, scene, work)
+    return _detect_sfm(arm, inputs, scene, work)
+
+
+def _detect_2d(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> list[dict[str, Any]]:
+    frame = scene.frame
+    result = recognize_2d(
+        frame.image,
+        frame.K,
+        frame.T_world_cam,
+        inputs.templates_2d[arm.pipeline],
+        arm.pipeline,
+        inputs.baseline2d,
+        seed=frame.seq,
+    )
+    work.stages = {
+        f"2d_{name}": ms for name, ms in result.stage_times_ms.items() if name != "total"
+    }
+    return [detection_dict(d.target, d.T_world_target, d.score) for d in result.detections]
+
+
+def _detect_lidar(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> list[dict[str, Any]]:
+    frame = scene.frame
+    work.points = len(frame.lidar_points_m)
+    detections, rec = _recognize(
+        frame.lidar_points_m,
+        inputs.templates_3d[arm.descriptor],
+        inputs.configs[arm],
+        frame.seq,
+        frame.T_world_cam[:3, 3].astype(np.float64),
+    )
+    work.stages = {k: v for k, v in rec.items() if k != "total"}
+    return detections
+
+
+def _detect_sfm(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> list[dict[str, Any]]:
+    config = inputs.configs[arm]
+    cloud, sfm_ms = _cloud(scene, config)
+    # the scene's time is its reconstruction (done once, shared by the descriptors) + its matcher
+    work.t0 = time.perf_counter() - sfm_ms / 1e3
+    work.stages = {
+        f"sfm_{n[5:-2]}": 1e3 * v
+        for n, v in cloud.stats.items()
+        if n.startswith("time_") and n.endswith("_s")
+    }
+    work.points = len(cloud.points_world_m)
+    detections, rec = _recognize(
+        cloud.points_world_m,
+        inputs.templates_3d[arm.descriptor],
+        config,
+        scene.frame.seq,
+        scene.pose.T_world_cam[:3, 3],
+        cloud.sigma_m,
+    )
+    work.stages |= {k: v for k, v in rec.items() if k != "total"}
+    return detections
+
+
+def _cloud(scene: _Scene, config: AtrConfig) -> tuple[Any, float]:
+    """The scene's SfM cloud with this configuration's matcher and its reconstruction time, ms
+    (reconstructed once per matcher).
+    """
+    matcher = config.sfm.matcher
+    if matcher not in scene.clouds:
+        pair = scene.pair
+        if pair is None:
+            raise InputError(
+                f"frame {scene.frame.seq} has no pair: no image or pose of its partner"
+            )
+        t_sfm = time.perf_counter()
+        cloud = reconstruct(
+            pair.image_t["data"],
+            pair.image_t1["data"],
+            scene.frame.K,
+            pair.pose["T_world_cam_t"],
+            pair.pose["T_world_cam_t1"],
+            config.sfm,
+            scene.frame.dist_coeffs,
+        )
+        scene.clouds[matcher] = (cloud, 1e3 * (time.perf_counter() - t_sfm))
+    return scene.clouds[matcher]

@@ -21,10 +21,9 @@ from atr.config import to_dict
 from atr.evaluation.experiment import Plan, storage_key
 from atr.evaluation.io import jsonable
 from atr.evaluation.metrics import TrackScore, score_tracks, vehicle_under
+from atr.evaluation.runner import flight_world
 from atr.evaluation.scoring import summarise
-from atr.io.mesh import load_mesh
 from atr.sim.scenarios import scenario as preset
-from atr.sim.world import build_world
 from atr.tracking import Tracker, TrackingConfig, TrackInput
 
 NOT_ON_A_VEHICLE = "elsewhere"
@@ -32,17 +31,9 @@ NOT_ON_A_VEHICLE = "elsewhere"
 
 def flight_vehicles(flight: Any, sim_config: Any) -> tuple[list[str], Any, Any]:
     """The flight's non-target vehicles (names, (V, 3) positions, (V,) radii), from its world rebuilt
-    without rendering (about a second; the same world `simulate_flight` renders for it).
+    without rendering (about a second; the same world `flight_frames` renders for it).
     """
-    world = build_world(
-        preset(flight.scenario, flight.run),
-        flight.seed,
-        target_mesh=load_mesh(flight.target_mesh) if flight.target_mesh else None,
-        target_name=flight.target,
-        clutter_meshes=[load_mesh(p) for p in flight.clutter_meshes],
-        config=sim_config,
-    )
-    vehicles = world.vehicles
+    vehicles = flight_world(flight, sim_config).vehicles
     return (
         [v.name for v in vehicles],
         np.array([v.position_m for v in vehicles], np.float64).reshape(-1, 3),

@@ -1,8 +1,9 @@
 """Accuracy of IMU pose integration against a ground-truth trajectory over fixed time windows.
 
-Pure functions on arrays: each window starts from the ground-truth state (pose, velocity, biases) at
-a ground-truth instant, integrates the IMU to the ground-truth instant nearest `window_s` later, and
-compares the integrated motion with the ground truth's.
+Pure functions of an IMU stream and a ground-truth trajectory as `atr.io.euroc` reads them: each window
+starts from the ground-truth state (pose, velocity, biases) at a ground-truth instant, integrates the IMU
+to the ground-truth instant nearest `window_s` later, and compares the integrated motion with the ground
+truth's.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from scipy.spatial.transform import Rotation
 from atr.errors import InputError
 from atr.imu.config import ImuConfig
 from atr.imu.strapdown import NavState, PoseIntegrator
+from atr.io.euroc import EurocGroundTruth, EurocImu
 
 
 @dataclass(frozen=True)
@@ -40,15 +42,8 @@ class WindowErrors:
 
 
 def window_errors(
-    imu_t_ns: np.ndarray,
-    gyro_radps: np.ndarray,
-    accel_mps2: np.ndarray,
-    gt_t_ns: np.ndarray,
-    gt_R_world_imu: np.ndarray,
-    gt_p_world_m: np.ndarray,
-    gt_v_world_mps: np.ndarray,
-    gt_gyro_bias_radps: np.ndarray,
-    gt_accel_bias_mps2: np.ndarray,
+    imu: EurocImu,
+    gt: EurocGroundTruth,
     start_indices: np.ndarray,
     window_s: float,
     *,
@@ -57,9 +52,8 @@ def window_errors(
     """Integrate the IMU over windows that start from ground-truth states.
 
     Args:
-        imu_t_ns, gyro_radps, accel_mps2: the whole IMU stream, (N,), (N, 3), (N, 3).
-        gt_t_ns: (M,) ground-truth stamps, ns. gt_R_world_imu: (M, 3, 3). gt_p_world_m,
-            gt_v_world_mps, gt_gyro_bias_radps, gt_accel_bias_mps2: (M, 3).
+        imu: the whole IMU stream.
+        gt: the ground-truth states (the body frame is the IMU's).
         start_indices: (K,) indices into the ground truth where windows start.
         window_s: window length, seconds (ends on the nearest ground-truth instant).
         config: integration settings (its T_imu_cam is ignored: errors are of the IMU pose).
@@ -72,24 +66,24 @@ def window_errors(
         raise InputError(f"window_s {window_s} must be > 0")
     starts, durations, rot, trans, dist = [], [], [], [], []
     for i in np.asarray(start_indices, dtype=np.int64):
-        t0 = int(gt_t_ns[i])
-        j = int(np.argmin(np.abs(gt_t_ns - (t0 + window_s * 1e9))))
-        t1 = int(gt_t_ns[j])
-        if j <= i or t0 < imu_t_ns[0] or t1 > imu_t_ns[-1]:
+        t0 = int(gt.t_ns[i])
+        j = int(np.argmin(np.abs(gt.t_ns - (t0 + window_s * 1e9))))
+        t1 = int(gt.t_ns[j])
+        if j <= i or t0 < imu.t_ns[0] or t1 > imu.t_ns[-1]:
             continue
-        a = max(int(np.searchsorted(imu_t_ns, t0, side="right")) - 1, 0)
-        b = int(np.searchsorted(imu_t_ns, t1, side="left")) + 1
-        state = NavState(t0, gt_R_world_imu[i], gt_p_world_m[i], gt_v_world_mps[i],
-                         gt_gyro_bias_radps[i], gt_accel_bias_mps2[i])  # fmt: skip
+        a = max(int(np.searchsorted(imu.t_ns, t0, side="right")) - 1, 0)
+        b = int(np.searchsorted(imu.t_ns, t1, side="left")) + 1
+        state = NavState(t0, gt.R_world_body[i], gt.p_world_m[i], gt.v_world_mps[i],
+                         gt.gyro_bias_radps[i], gt.accel_bias_mps2[i])  # fmt: skip
         pi = PoseIntegrator(config, state)
-        pi.add_imu(imu_t_ns[a:b], gyro_radps[a:b], accel_mps2[a:b])
+        pi.add_imu(imu.t_ns[a:b], imu.gyro_radps[a:b], imu.accel_mps2[a:b])
         pi.camera_pose(t1)
         end = pi.state
         starts.append(t0)
         durations.append((t1 - t0) / 1e9)
-        rot.append(Rotation.from_matrix(gt_R_world_imu[j].T @ end.R_world_imu).magnitude())
-        trans.append(float(np.linalg.norm(end.p_world_m - gt_p_world_m[j])))
-        dist.append(float(np.linalg.norm(gt_p_world_m[j] - gt_p_world_m[i])))
+        rot.append(Rotation.from_matrix(gt.R_world_body[j].T @ end.R_world_imu).magnitude())
+        trans.append(float(np.linalg.norm(end.p_world_m - gt.p_world_m[j])))
+        dist.append(float(np.linalg.norm(gt.p_world_m[j] - gt.p_world_m[i])))
     return WindowErrors(
         window_s,
         np.asarray(starts, dtype=np.int64),
@@ -125,45 +119,38 @@ class GroundTruthErrors:
 
 
 def ground_truth_errors(
-    imu_t_ns: np.ndarray,
-    gyro_radps: np.ndarray,
-    accel_mps2: np.ndarray,
-    gt_t_ns: np.ndarray,
-    gt_R_world_imu: np.ndarray,
-    gt_p_world_m: np.ndarray,
-    gt_v_world_mps: np.ndarray,
-    gt_gyro_bias_radps: np.ndarray,
-    gt_accel_bias_mps2: np.ndarray,
-    static_until_ns: int,
+    imu: EurocImu, gt: EurocGroundTruth, static_until_ns: int
 ) -> GroundTruthErrors:
     """Estimate the ground truth's own error terms (see GroundTruthErrors).
 
     Args:
+        imu: the whole IMU stream.
+        gt: the ground-truth states (the body frame is the IMU's).
         static_until_ns: the vehicle is at rest from the first ground-truth instant to this stamp;
             every term is measured over that segment.
 
     """
     i = 0  # the static segment starts at the first ground-truth row
-    m = (imu_t_ns >= gt_t_ns[0]) & (imu_t_ns <= static_until_ns)
+    m = (imu.t_ns >= gt.t_ns[0]) & (imu.t_ns <= static_until_ns)
     if m.sum() < 10:
         raise InputError(
             f"static segment up to {static_until_ns} ns holds {int(m.sum())} IMU samples (need 10)"
         )
-    f_world = (gt_R_world_imu[i] @ (accel_mps2[m] - gt_accel_bias_mps2[i]).T).T.mean(axis=0)
+    f_world = (gt.R_world_body[i] @ (imu.accel_mps2[m] - gt.accel_bias_mps2[i]).T).T.mean(axis=0)
     tilt = float(np.arctan2(np.hypot(f_world[0], f_world[1]), f_world[2]))
-    bias_err = float(np.linalg.norm(gyro_radps[m].mean(axis=0) - gt_gyro_bias_radps[i]))
+    bias_err = float(np.linalg.norm(imu.gyro_radps[m].mean(axis=0) - gt.gyro_bias_radps[i]))
     # At rest the true velocity is zero and the true pose constant: what the ground truth shows is
     # its error.
-    k = int(np.searchsorted(gt_t_ns, static_until_ns, side="right"))
+    k = int(np.searchsorted(gt.t_ns, static_until_ns, side="right"))
     if k < 5:
         raise InputError(
             f"static segment up to {static_until_ns} ns holds {k} ground-truth rows (need 5)"
         )
-    vel_err = float(np.sqrt(np.mean(np.sum(gt_v_world_mps[:k] ** 2, axis=1))))
-    p = gt_p_world_m[:k]
+    vel_err = float(np.sqrt(np.mean(np.sum(gt.v_world_mps[:k] ** 2, axis=1))))
+    p = gt.p_world_m[:k]
     d2 = p[2:] - 2.0 * p[1:-1] + p[:-2]
     pos_noise = float(np.linalg.norm(1.4826 * np.median(np.abs(d2), axis=0)) / np.sqrt(6.0))
-    Rs = gt_R_world_imu[:k]
+    Rs = gt.R_world_body[:k]
     rv = Rotation.from_matrix(np.einsum("ji,njk->nik", Rs[0], Rs)).as_rotvec()
     d2r = rv[2:] - 2.0 * rv[1:-1] + rv[:-2]
     rot_noise = float(np.linalg.norm(1.4826 * np.median(np.abs(d2r), axis=0)) / np.sqrt(6.0))

@@ -7,6 +7,7 @@ no maintained Python LZF package is in this project's dependencies, so the tiny 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numba
@@ -107,6 +108,104 @@ def _parse_header(raw: bytes, path: Path) -> tuple[dict[str, list[str]], int]:
             return header, pos
 
 
+@dataclass(frozen=True)
+class _Layout:
+    """What the header says about the data: per field its name, element type and count."""
+
+    names: list[str]
+    dtypes: list[np.dtype]
+    counts: list[int]
+    n_points: int
+    kind: str
+
+
+def _layout(header: dict[str, list[str]], path: Path) -> _Layout:
+    try:
+        names = header["FIELDS"]
+        sizes = [int(v) for v in header["SIZE"]]
+        types = [v.upper() for v in header["TYPE"]]
+        counts = [int(v) for v in header.get("COUNT", ["1"] * len(names))]
+        n_points = (
+            int(header["POINTS"][0])
+            if "POINTS" in header
+            else (int(header["WIDTH"][0]) * int(header["HEIGHT"][0]))
+        )
+        kind = header["DATA"][0].lower()
+    except (KeyError, IndexError, ValueError) as exc:
+        raise InputError(f"{path}: malformed PCD header ({exc})") from exc
+    if not len(names) == len(sizes) == len(types) == len(counts):
+        raise InputError(f"{path}: FIELDS/SIZE/TYPE/COUNT lengths differ")
+    dtypes = []
+    for name, t, s in zip(names, types, sizes, strict=True):
+        if (t, s) not in _TYPES:
+            raise InputError(f"{path}: field {name!r} has unsupported TYPE {t} SIZE {s}")
+        dtypes.append(np.dtype(_TYPES[(t, s)]).newbyteorder("<"))
+    return _Layout(names, dtypes, counts, n_points, kind)
+
+
+def _ascii_columns(body: bytes, layout: _Layout, path: Path) -> list[np.ndarray]:
+    n_points = layout.n_points
+    text = body.decode("ascii", errors="replace").split()
+    width = sum(layout.counts)
+    if len(text) < n_points * width:
+        raise InputError(f"{path}: {len(text)} ascii values, expected {n_points * width}")
+    table = np.array(text[: n_points * width], dtype=object).reshape(n_points, width)
+    columns, col = [], 0
+    for dt, c in zip(layout.dtypes, layout.counts, strict=True):
+        block = table[:, col : col + c]
+        if dt.kind == "f":
+            arr = block.astype(np.float64).astype(dt)
+        else:  # integers: parse through int to keep full 64-bit precision
+            arr = np.vectorize(int, otypes=[np.int64])(block).astype(dt)
+        columns.append(arr)
+        col += c
+    return columns
+
+
+def _binary_columns(body: bytes, layout: _Layout, path: Path) -> list[np.ndarray]:
+    n_points = layout.n_points
+    record = np.dtype(
+        [
+            (f"f{i}", dt, (c,))
+            for i, (dt, c) in enumerate(zip(layout.dtypes, layout.counts, strict=True))
+        ]
+    )
+    if len(body) < n_points * record.itemsize:
+        raise InputError(
+            f"{path}: binary data has {len(body)} bytes, expected {n_points * record.itemsize}"
+        )
+    rec = np.frombuffer(body, dtype=record, count=n_points)
+    return [np.asarray(rec[f"f{i}"]) for i in range(len(layout.names))]
+
+
+def _compressed_columns(body: bytes, layout: _Layout, path: Path) -> list[np.ndarray]:
+    n_points = layout.n_points
+    if len(body) < 8:
+        raise InputError(f"{path}: binary_compressed data is truncated")
+    comp, uncomp = np.frombuffer(body[:8], dtype="<u4")
+    if len(body) < 8 + int(comp):
+        raise InputError(f"{path}: compressed block has {len(body) - 8} bytes, expected {comp}")
+    data = lzf_decompress(body[8 : 8 + int(comp)], int(uncomp))
+    expected = n_points * sum(
+        dt.itemsize * c for dt, c in zip(layout.dtypes, layout.counts, strict=True)
+    )
+    if len(data) != expected:
+        raise InputError(f"{path}: decompressed {len(data)} bytes, expected {expected}")
+    columns, off = [], 0  # column-major: all values of a field, then the next field
+    for dt, c in zip(layout.dtypes, layout.counts, strict=True):
+        nbytes = n_points * c * dt.itemsize
+        columns.append(np.frombuffer(data[off : off + nbytes], dtype=dt).reshape(n_points, c))
+        off += nbytes
+    return columns
+
+
+_READERS = {
+    "ascii": _ascii_columns,
+    "binary": _binary_columns,
+    "binary_compressed": _compressed_columns,
+}
+
+
 def read_pcd(path: str | Path) -> dict[str, np.ndarray]:
     """Read every field of a PCD file.
 
@@ -128,78 +227,16 @@ def read_pcd(path: str | Path) -> dict[str, np.ndarray]:
     except OSError as exc:
         raise InputError(f"cannot read PCD file {path}: {exc}") from exc
     header, data_start = _parse_header(raw, path)
-    try:
-        names = header["FIELDS"]
-        sizes = [int(v) for v in header["SIZE"]]
-        types = [v.upper() for v in header["TYPE"]]
-        counts = [int(v) for v in header.get("COUNT", ["1"] * len(names))]
-        n_points = (
-            int(header["POINTS"][0])
-            if "POINTS" in header
-            else (int(header["WIDTH"][0]) * int(header["HEIGHT"][0]))
-        )
-        kind = header["DATA"][0].lower()
-    except (KeyError, IndexError, ValueError) as exc:
-        raise InputError(f"{path}: malformed PCD header ({exc})") from exc
-    if not len(names) == len(sizes) == len(types) == len(counts):
-        raise InputError(f"{path}: FIELDS/SIZE/TYPE/COUNT lengths differ")
-    dtypes = []
-    for name, t, s in zip(names, types, sizes, strict=True):
-        if (t, s) not in _TYPES:
-            raise InputError(f"{path}: field {name!r} has unsupported TYPE {t} SIZE {s}")
-        dtypes.append(np.dtype(_TYPES[(t, s)]).newbyteorder("<"))
-
-    body = raw[data_start:]
-    columns: list[np.ndarray]
-    if kind == "ascii":
-        text = body.decode("ascii", errors="replace").split()
-        width = sum(counts)
-        if len(text) < n_points * width:
-            raise InputError(f"{path}: {len(text)} ascii values, expected {n_points * width}")
-        table = np.array(text[: n_points * width], dtype=object).reshape(n_points, width)
-        columns, col = [], 0
-        for dt, c in zip(dtypes, counts, strict=True):
-            block = table[:, col : col + c]
-            if dt.kind == "f":
-                arr = block.astype(np.float64).astype(dt)
-            else:  # integers: parse through int to keep full 64-bit precision
-                arr = np.vectorize(int, otypes=[np.int64])(block).astype(dt)
-            columns.append(arr)
-            col += c
-    elif kind == "binary":
-        record = np.dtype(
-            [(f"f{i}", dt, (c,)) for i, (dt, c) in enumerate(zip(dtypes, counts, strict=True))]
-        )
-        if len(body) < n_points * record.itemsize:
-            raise InputError(
-                f"{path}: binary data has {len(body)} bytes, expected {n_points * record.itemsize}"
-            )
-        rec = np.frombuffer(body, dtype=record, count=n_points)
-        columns = [np.asarray(rec[f"f{i}"]) for i in range(len(names))]
-    elif kind == "binary_compressed":
-        if len(body) < 8:
-            raise InputError(f"{path}: binary_compressed data is truncated")
-        comp, uncomp = np.frombuffer(body[:8], dtype="<u4")
-        if len(body) < 8 + int(comp):
-            raise InputError(f"{path}: compressed block has {len(body) - 8} bytes, expected {comp}")
-        data = lzf_decompress(body[8 : 8 + int(comp)], int(uncomp))
-        expected = n_points * sum(s * c for s, c in zip(sizes, counts, strict=True))
-        if len(data) != expected:
-            raise InputError(f"{path}: decompressed {len(data)} bytes, expected {expected}")
-        columns, off = [], 0  # column-major: all values of a field, then the next field
-        for dt, c in zip(dtypes, counts, strict=True):
-            nbytes = n_points * c * dt.itemsize
-            columns.append(np.frombuffer(data[off : off + nbytes], dtype=dt).reshape(n_points, c))
-            off += nbytes
-    else:
-        raise InputError(f"{path}: DATA {kind!r} is not ascii, binary or binary_compressed")
-
+    layout = _layout(header, path)
+    if layout.kind not in _READERS:
+        raise InputError(f"{path}: DATA {layout.kind!r} is not ascii, binary or binary_compressed")
+    columns = _READERS[layout.kind](raw[data_start:], layout, path)
     out: dict[str, np.ndarray] = {}
-    for name, arr, c in zip(names, columns, counts, strict=True):
+    for name, arr, c in zip(layout.names, columns, layout.counts, strict=True):
         if name == "_":
             continue
         arr = np.ascontiguousarray(arr.astype(arr.dtype.newbyteorder("=")))
-        out[name] = arr.reshape(n_points) if c == 1 else arr.reshape(n_points, c)
+        out[name] = arr.reshape(layout.n_points) if c == 1 else arr.reshape(layout.n_points, c)
     return out
 
 

@@ -15,6 +15,11 @@ import open3d as o3d
 
 from atr.recognition.template import hidden_point_removal, sample_mesh_surface
 
+VIEW_RANGE_M = 50.0
+"""Distance of a synthetic scene's viewpoint from the scene centre, metres (the paper's shortest range)."""
+VIEW_ELEVATION_DEG = 30.0
+"""Elevation of a synthetic scene's viewpoint above the horizon, degrees (90 = nadir)."""
+
 
 def _box(
     size: tuple[float, float, float], centre: tuple[float, float, float]
@@ -120,6 +125,16 @@ def clutter_meshes(rng: np.random.Generator, n: int, extent_m: float, keep_out_m
     return meshes
 
 
+def aerial_viewpoint_m(azimuth_deg: float) -> np.ndarray:
+    """(3,) position an `aerial_scene` is seen from, metres: `VIEW_RANGE_M` from the scene centre,
+    `VIEW_ELEVATION_DEG` above the horizon, at this azimuth (degrees, counter-clockwise from +x).
+    """
+    el, az = math.radians(VIEW_ELEVATION_DEG), math.radians(azimuth_deg)
+    return VIEW_RANGE_M * np.array(
+        [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
+    )
+
+
 def aerial_scene(
     vehicles: list[tuple[tuple[np.ndarray, np.ndarray], np.ndarray]],
     *,
@@ -128,8 +143,6 @@ def aerial_scene(
     extent_m: float = 25.0,
     samples_per_m2: float = 100.0,
     noise_m: float = 0.0,
-    range_m: float = 50.0,
-    elevation_deg: float = 30.0,
     azimuth_deg: float = 0.0,
 ) -> np.ndarray:
     """A scene point cloud: ground, clutter and vehicles, surface-sampled and seen from one aerial viewpoint.
@@ -141,9 +154,7 @@ def aerial_scene(
         extent_m: half-size of the square ground patch, metres.
         samples_per_m2: surface sampling density before hidden point removal.
         noise_m: standard deviation of Gaussian noise added to every point, metres.
-        range_m: viewpoint distance from the scene centre, metres.
-        elevation_deg: viewpoint elevation (90 - obliquity convention is not used: 90 = nadir).
-        azimuth_deg: viewpoint azimuth.
+        azimuth_deg: viewpoint azimuth, degrees (the viewpoint is `aerial_viewpoint_m(azimuth_deg)`).
 
     Returns:
         (N, 3) float64 world points, metres.
@@ -161,11 +172,7 @@ def aerial_scene(
     for v, f in [ground, *clutter_meshes(rng, n_clutter, extent_m, keep_out)]:
         clouds.append(sample_mesh_surface(v, f, samples_per_m2, seed=int(rng.integers(1 << 31)))[0])
     pts = np.concatenate(clouds)
-    el, az = math.radians(elevation_deg), math.radians(azimuth_deg)
-    vp = range_m * np.array(
-        [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
-    )
-    pts = pts[hidden_point_removal(pts, vp[None], 100.0)]
+    pts = pts[hidden_point_removal(pts, aerial_viewpoint_m(azimuth_deg)[None], 100.0)]
     if noise_m > 0:
         pts = pts + rng.normal(0.0, noise_m, pts.shape)
     return pts

@@ -9,15 +9,14 @@ is at 1 s).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from atr.errors import ConfigError
 from atr.sim.config import SimConfig
-from atr.sim.mesh import Mesh
-from atr.sim.noise import noisy_cloud, noisy_image, parse_noise
+from atr.sim.noise import NoiseSpec, noisy_cloud, noisy_image, parse_noise
 from atr.sim.render import Renderer, to_srgb8
 from atr.sim.scenarios import Scenario
 from atr.sim.trajectory import Orbit
@@ -103,20 +102,147 @@ def imu_samples(
     return ImuSamples(np.asarray(t_s, dtype=np.float64), gyro, accel)
 
 
+def true_imu_pose(orbit: Orbit, t_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The true IMU pose T_world_imu (4, 4) and velocity v_world_imu (3,), m/s, t_s seconds into the run."""
+    st = orbit.state(np.array([t_s]))
+    T_world_imu = np.eye(4)
+    T_world_imu[:3, :3] = st.R_world_imu[0]
+    T_world_imu[:3, 3] = st.p_world[0]
+    return T_world_imu, st.v_world[0]
+
+
+class FlightSimulator:
+    """The sensors of one scenario run over a built world, frame by frame.
+
+    The whole run's IMU samples are drawn at construction, so that neither the number of frames nor which
+    frames are rendered changes any value; each frame's image and LIDAR noise come from generators seeded
+    by (seed, scenario, run, sensor, frame).
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        world: World,
+        config: SimConfig,
+        *,
+        seed: int,
+        frames: int | None = None,
+        imu_noise: bool = True,
+    ) -> None:
+        """Draw the run's IMU samples.
+
+        Args:
+            scenario: the run (Table II preset from `scenario()` or a custom one).
+            world: the world built for this scenario and seed (`build_world`).
+            config: simulator settings.
+            seed: noise seed (the world's seed in `simulate_flight`).
+            frames: the flight stops after this many frames (default: the run's n_frames).
+            imu_noise: add IMU bias, bias random walk and white noise (False: exact readings).
+
+        Raises:
+            ConfigError: frames < 1.
+
+        """
+        if frames is not None and frames < 1:
+            raise ConfigError(f"frames {frames} must be >= 1")
+        self.n_frames = scenario.n_frames if frames is None else int(frames)
+        """Frames of the flight."""
+        self._scenario, self._world, self._cfg = scenario, world, config
+        self._renderer = Renderer(world, config)
+        self._per_frame = int(round(config.frame_interval_s(scenario.range_m) * config.imu_rate_hz))
+        # the whole run's IMU noise is drawn up front so that `frames` does not change any value
+        n_imu = (scenario.n_frames - 1) * self._per_frame + 1
+        t_imu = (
+            np.arange(max(n_imu, (self.n_frames - 1) * self._per_frame + 1)) / config.imu_rate_hz
+        )
+        # generator seeds: stream + [tag, ...] (1: IMU, 2: image noise, 3: LIDAR)
+        self._stream = [seed, scenario.scenario, scenario.run]
+        imu_rng = np.random.default_rng(self._stream + [1]) if imu_noise else None
+        self._imu = imu_samples(world.orbit, t_imu, config, imu_rng)
+        self._T_imu_cam = config.T_imu_cam_matrix
+        self._K = config.K
+
+    def frame(
+        self,
+        seq: int,
+        *,
+        lidar: bool = False,
+        noise: NoiseSpec = NoiseSpec(),
+        rendered: bool = True,
+    ) -> SensorFrame:
+        """Frame seq of the flight.
+
+        Args:
+            seq: frame index, 0 .. n_frames - 1.
+            lidar: also scan the scene with the LIDAR.
+            noise: image and LIDAR noise (atr.sim.noise).
+            rendered: False gives an empty (0, 0, 3) image and no LIDAR scan, only the frame's IMU
+                samples and truth (an evaluation that samples scenes still integrates every IMU batch).
+
+        """
+        k1 = seq * self._per_frame
+        k0 = 0 if seq == 0 else (seq - 1) * self._per_frame + 1
+        t = k1 / self._cfg.imu_rate_hz
+        T_world_imu, v_world_imu = true_imu_pose(self._world.orbit, t)
+        T_world_cam = T_world_imu @ self._T_imu_cam
+        image = np.zeros((0, 0, 3), np.uint8)
+        if rendered:
+            image = self._image(seq, T_world_cam, noise)
+        cloud = None
+        if lidar and rendered:
+            cloud = self._lidar_scan(seq, T_world_cam, noise)
+        truth = [
+            TargetTruth(
+                self._world.target_name,
+                self._world.T_world_target.copy(),
+                self._renderer.visible_fraction(T_world_cam),
+            )
+        ]
+        imu = self._imu
+        return SensorFrame(
+            seq=seq,
+            stamp_ns=STAMP0_NS + int(round(t * 1e9)),
+            image=image,
+            K=self._K.copy(),
+            T_world_cam=T_world_cam,
+            imu_t_ns=STAMP0_NS + np.round(imu.t_s[k0 : k1 + 1] * 1e9).astype(np.int64),
+            gyro_radps=imu.gyro_radps[k0 : k1 + 1].copy(),
+            accel_mps2=imu.accel_mps2[k0 : k1 + 1].copy(),
+            T_world_imu=T_world_imu,
+            v_world_imu_mps=v_world_imu.copy(),
+            lidar_points_m=cloud,
+            targets=truth,
+            dist_coeffs=np.asarray(self._cfg.dist_coeffs, dtype=np.float64),
+        )
+
+    def _image(self, seq: int, T_world_cam: np.ndarray, noise: NoiseSpec) -> np.ndarray:
+        lin, _ = self._renderer.render(T_world_cam)
+        image = to_srgb8(lin)
+        if noise.active:
+            rng = np.random.default_rng(self._stream + [2, seq])
+            image = noisy_image(lin, image, noise, self._cfg.shot_noise_full_well, rng)
+        return image
+
+    def _lidar_scan(self, seq: int, T_world_cam: np.ndarray, noise: NoiseSpec) -> np.ndarray:
+        rng = np.random.default_rng(self._stream + [3, seq])
+        sc = self._scenario
+        cloud = self._renderer.lidar_scan(T_world_cam, sc.lidar_resolution_m, sc.range_m, rng)
+        if noise.active:
+            cloud = noisy_cloud(
+                cloud, T_world_cam[:3, 3], noise, self._cfg.lidar_shot_quantum_m, rng
+            )
+        return cloud
+
+
 def simulate_flight(
     scenario: Scenario,
     *,
     seed: int = 0,
     frames: int | None = None,
-    target_mesh: Mesh | None = None,
-    clutter_meshes: Sequence[Mesh] = (),
     lidar: bool = False,
     noise: str | None = None,
     config: SimConfig | None = None,
-    target_name: str | None = None,
-    imu_noise: bool = True,
     world: World | None = None,
-    render: Callable[[int], bool] | None = None,
 ) -> Iterator[SensorFrame]:
     """Fly one scenario run and yield its frames in order.
 
@@ -124,98 +250,26 @@ def simulate_flight(
         scenario: the run (Table II preset from `scenario()` or a custom one).
         seed: world and noise seed; the same arguments give byte-identical frames.
         frames: stop after this many frames (default: the run's n_frames = n_scenes + 1).
-        target_mesh: replaces the T-72 (vehicle frame: z up, x forward, metres).
-        clutter_meshes: extra confuser vehicles placed near the target.
         lidar: also produce a LIDAR scan per frame.
         noise: noise spec ("shot", "gaussian:10", "gaussian:30", "shot,gaussian:10"; see
-        atr.sim.noise).
+            atr.sim.noise).
         config: simulator settings.
-        target_name: name of a custom target in the truth (default "target"; "t72" for the
-        built-in).
-        imu_noise: add IMU bias, bias random walk and white noise (False: exact readings).
-        world: a world already built for this scenario and seed (skips building it again).
-        render: which frames (by seq) to render (default: all). A frame it refuses carries an empty
-            (0, 0, 3) image and no LIDAR scan, only its IMU samples and truth: an evaluation that samples
-            scenes along a run still integrates the whole IMU stream. Every other value is unchanged.
+        world: the world to fly over (default: `build_world(scenario, seed)`, the T-72 and no
+            confusers); a custom target or confusers come in through `build_world`'s arguments.
 
     Yields:
-        SensorFrame per frame.
+        SensorFrame per frame (`FlightSimulator.frame`, every frame rendered, the IMU noisy).
 
     Raises:
-        ConfigError: frames < 1.
+        ConfigError: frames < 1, or a bad noise spec.
 
     """
     cfg = config or SimConfig()
     if frames is not None and frames < 1:
         raise ConfigError(f"frames {frames} must be >= 1")
-    n_frames = scenario.n_frames if frames is None else int(frames)
     spec = parse_noise(noise)
     if world is None:
-        world = build_world(
-            scenario,
-            seed,
-            target_mesh=target_mesh,
-            target_name=target_name,
-            clutter_meshes=clutter_meshes,
-            config=cfg,
-        )
-    renderer = Renderer(world, cfg)
-    orbit = world.orbit
-    interval = cfg.frame_interval_s(scenario.range_m)
-    per_frame = int(round(interval * cfg.imu_rate_hz))
-    # the whole run's IMU noise is drawn up front so that `frames` does not change any value
-    n_imu = (scenario.n_frames - 1) * per_frame + 1
-    t_imu = np.arange(max(n_imu, (n_frames - 1) * per_frame + 1)) / cfg.imu_rate_hz
-    stream = [seed, scenario.scenario, scenario.run]  # generator seeds: stream + [tag, ...]
-    imu_rng = np.random.default_rng(stream + [1]) if imu_noise else None
-    imu = imu_samples(orbit, t_imu, cfg, imu_rng)
-    T_imu_cam = cfg.T_imu_cam_matrix
-    K = cfg.K
-    for seq in range(n_frames):
-        k1 = seq * per_frame
-        k0 = 0 if seq == 0 else (seq - 1) * per_frame + 1
-        t = k1 / cfg.imu_rate_hz
-        st = orbit.state(np.array([t]))
-        T_world_imu = np.eye(4)
-        T_world_imu[:3, :3] = st.R_world_imu[0]
-        T_world_imu[:3, 3] = st.p_world[0]
-        T_world_cam = T_world_imu @ T_imu_cam
-        rendered = render is None or render(seq)
-        image = np.zeros((0, 0, 3), np.uint8)
-        if rendered:
-            lin, _ = renderer.render(T_world_cam)
-            image = to_srgb8(lin)
-        if rendered and spec.active:
-            image = noisy_image(
-                lin, image, spec, cfg.shot_noise_full_well, np.random.default_rng(stream + [2, seq])
-            )
-        cloud = None
-        if lidar and rendered:
-            lrng = np.random.default_rng(stream + [3, seq])
-            cloud = renderer.lidar_scan(
-                T_world_cam, scenario.lidar_resolution_m, scenario.range_m, lrng
-            )
-            if spec.active:
-                cloud = noisy_cloud(cloud, T_world_cam[:3, 3], spec, cfg.lidar_shot_quantum_m, lrng)
-        truth = [
-            TargetTruth(
-                world.target_name,
-                world.T_world_target.copy(),
-                renderer.visible_fraction(T_world_cam),
-            )
-        ]
-        yield SensorFrame(
-            seq=seq,
-            stamp_ns=STAMP0_NS + int(round(t * 1e9)),
-            image=image,
-            K=K.copy(),
-            T_world_cam=T_world_cam,
-            imu_t_ns=STAMP0_NS + np.round(imu.t_s[k0 : k1 + 1] * 1e9).astype(np.int64),
-            gyro_radps=imu.gyro_radps[k0 : k1 + 1].copy(),
-            accel_mps2=imu.accel_mps2[k0 : k1 + 1].copy(),
-            T_world_imu=T_world_imu,
-            v_world_imu_mps=st.v_world[0].copy(),
-            lidar_points_m=cloud,
-            targets=truth,
-            dist_coeffs=np.asarray(cfg.dist_coeffs, dtype=np.float64),
-        )
+        world = build_world(scenario, seed, config=cfg)
+    sim = FlightSimulator(scenario, world, cfg, seed=seed, frames=frames)
+    for seq in range(sim.n_frames):
+        yield sim.frame(seq, lidar=lidar, noise=spec)

@@ -33,14 +33,12 @@ def euroc():
     imu = read_imu(EUROC)
     gt = read_groundtruth(EUROC / "groundtruth" / "V1_01_easy.csv")
     noise = read_imu_noise(EUROC)
-    args = (imu.t_ns, imu.gyro_radps, imu.accel_mps2, gt.t_ns, gt.R_world_body, gt.p_world_m,
-            gt.v_world_mps, gt.gyro_bias_radps, gt.accel_bias_mps2)  # fmt: skip
     moved = np.linalg.norm(gt.p_world_m - gt.p_world_m[0], axis=1) > STATIC_DISPLACEMENT_M
     static_until_ns = int(gt.t_ns[int(np.argmax(moved)) - 1])
-    gt_err = ground_truth_errors(*args, static_until_ns)
+    gt_err = ground_truth_errors(imu, gt, static_until_ns)
     speed = np.linalg.norm(gt.v_world_mps, axis=1)
     starts = np.nonzero(speed > IN_FLIGHT_MPS)[0][::5]
-    return args, noise, gt_err, starts
+    return (imu, gt), noise, gt_err, starts
 
 
 def test_reader_gives_the_documented_stream():
@@ -66,9 +64,9 @@ def test_ground_truth_own_errors_are_small(euroc):
 
 @pytest.mark.parametrize("window_s", WINDOWS_S)
 def test_strapdown_errors_stay_within_noise_prediction(euroc, window_s):
-    args, noise, gt_err, starts = euroc
+    (imu, gt), noise, gt_err, starts = euroc
     cfg = ImuConfig()
-    e = window_errors(*args, starts, window_s, config=cfg)
+    e = window_errors(imu, gt, starts, window_s, config=cfg)
     assert len(e.start_ns) > 400
     rot_bound, trans_bound = error_bound(
         window_s, noise.gyro_noise_density, noise.accel_noise_density, gt_err, cfg.gravity_mps2
@@ -81,9 +79,9 @@ def test_strapdown_errors_stay_within_noise_prediction(euroc, window_s):
 
 @pytest.mark.parametrize("window_s", (0.5, 1.0))
 def test_literal_paper_eq4_is_far_outside_the_prediction(euroc, window_s):
-    args, noise, gt_err, starts = euroc
+    (imu, gt), noise, gt_err, starts = euroc
     cfg = ImuConfig(integration="paper")
-    e = window_errors(*args, starts, window_s, config=cfg)
+    e = window_errors(imu, gt, starts, window_s, config=cfg)
     _, trans_bound = error_bound(
         window_s, noise.gyro_noise_density, noise.accel_noise_density, gt_err, cfg.gravity_mps2
     )

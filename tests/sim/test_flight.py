@@ -63,11 +63,8 @@ def test_target_mesh_file_appears_in_frame_and_truth(small_cfg, tmp_path):
     save_mesh(truck_6x6(), path)
     mesh = load_mesh(path)
     sc = custom_scenario(50.0, 30.0, n_scenes=1)
-    f = next(
-        simulate_flight(
-            sc, seed=4, frames=1, config=small_cfg, target_mesh=mesh, target_name="truck"
-        )
-    )
+    world = build_world(sc, 4, target_mesh=mesh, target_name="truck", config=small_cfg)
+    f = next(simulate_flight(sc, seed=4, frames=1, config=small_cfg, world=world))
     assert [t.name for t in f.targets] == ["truck"]
     assert f.targets[0].visible_fraction > 0.8
     T = f.targets[0].T_world_target
@@ -123,3 +120,17 @@ def test_clutter_meshes_are_listed_by_their_index(small_cfg):
     sc = custom_scenario(50.0, 30.0, n_scenes=1)
     world = build_world(sc, 4, clutter_meshes=[truck_6x6()], config=small_cfg)
     assert "clutter-0" in [v.name for v in world.vehicles]
+
+
+def test_unrendered_frame_keeps_imu_and_truth(small_cfg, world_s1r3):
+    from atr.sim.flight import FlightSimulator
+    from atr.sim.noise import parse_noise
+
+    sim = FlightSimulator(scenario(1, 3), world_s1r3, small_cfg, seed=0, frames=2)
+    noise = parse_noise("gaussian:10")
+    shown = sim.frame(1, lidar=True, noise=noise)
+    skipped = sim.frame(1, lidar=True, noise=noise, rendered=False)
+    assert skipped.image.shape == (0, 0, 3) and skipped.lidar_points_m is None
+    assert shown.image.shape == (240, 320, 3) and shown.lidar_points_m is not None
+    shown.image, shown.lidar_points_m = skipped.image, None
+    assert _sig([shown]) == _sig([skipped])
