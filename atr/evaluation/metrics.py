@@ -196,10 +196,13 @@ class TrackScore:
     Attributes:
         counts: per scene, the confirmed tracks judged like detections (`score_scene`; the most
             supported track is the hypothesis): TP, FP, FN, TN totals.
-        false_tracks: confirmed tracks that never lay within the TP bound of a present target.
+        false_tracks: confirmed tracks that never lay within the TP bound of the target.
         scenes_to_confirm: scenes from the first scene with the target to the first TP, counting both
             (1: confirmed on the first scene; NaN: never, or no scene has the target).
         t_error_median_m: median position error of the TP scenes' tracks, metres (NaN without a TP).
+        held_while_hidden: scenes counted TN whose best track held the target's true position while the
+            target was hidden (below the visibility rule): a FP by the per-scene rule, a right claim
+            for a track.
 
     """
 
@@ -207,35 +210,58 @@ class TrackScore:
     false_tracks: int
     scenes_to_confirm: float
     t_error_median_m: float
+    held_while_hidden: int = 0
 
 
 def score_tracks(
     true_positions_m: Sequence[Sequence[np.ndarray]],
     tracks: Sequence[Sequence[tuple[int, np.ndarray]]],
     *,
+    hidden_positions_m: Sequence[Sequence[np.ndarray]] | None = None,
     max_error_m: float = MAX_TRANSLATION_ERROR_M,
 ) -> TrackScore:
     """Judge a flight's confirmed tracks scene by scene.
+
+    The per-scene rule asks a scene to find only a target it sees (§III-C's "present"). A track claims
+    where the vehicle *is*, and holds that place through occlusion: a scene whose best track lies within
+    the TP bound of a target that is there but hidden is not a false positive but a TN
+    (`held_while_hidden` counts them), and such a track is not a false track.
 
     Args:
         true_positions_m: per scene, (3,) positions of the target instances present (as `score_scene`).
         tracks: per scene, (track id, (3,) fused position) of the confirmed tracks for the target, most
             supported first.
+        hidden_positions_m: per scene, (3,) positions of the target instances in the world but not
+            present (below the visibility rule); None: none.
         max_error_m: translation error bound of a TP, metres (§III-C: 2 m).
 
     Returns:
         The flight's track-level figures.
 
     Raises:
-        InputError: the two sequences have different numbers of scenes.
+        InputError: the sequences have different numbers of scenes.
 
     """
-    if len(true_positions_m) != len(tracks):
-        raise InputError(f"{len(true_positions_m)} scenes of truth but {len(tracks)} of tracks")
+    hidden = hidden_positions_m if hidden_positions_m is not None else [[] for _ in tracks]
+    if not len(true_positions_m) == len(tracks) == len(hidden):
+        raise InputError(
+            f"{len(true_positions_m)} scenes of truth, {len(hidden)} of hidden targets but "
+            f"{len(tracks)} of tracks"
+        )
+
+    def near(p: np.ndarray, targets: Sequence[np.ndarray]) -> bool:
+        return any(np.linalg.norm(np.asarray(p) - np.asarray(t)) < max_error_m for t in targets)
+
     scores, confirmed, true_ids = [], set(), set()
     first_target = first_tp = None
-    for k, (truth, scene_tracks) in enumerate(zip(true_positions_m, tracks, strict=True)):
+    held = 0
+    for k, (truth, scene_tracks, scene_hidden) in enumerate(
+        zip(true_positions_m, tracks, hidden, strict=True)
+    ):
         score = score_scene(truth, [p for _, p in scene_tracks], max_error_m=max_error_m)
+        if score.outcome == "fp" and not truth and near(scene_tracks[0][1], scene_hidden):
+            score = SceneScore("tn", float("nan"), False)
+            held += 1
         scores.append(score)
         if truth and first_target is None:
             first_target = k
@@ -243,7 +269,7 @@ def score_tracks(
             first_tp = k
         for track_id, p in scene_tracks:
             confirmed.add(track_id)
-            if any(np.linalg.norm(np.asarray(p) - np.asarray(t)) < max_error_m for t in truth):
+            if near(p, [*truth, *scene_hidden]):
                 true_ids.add(track_id)
     errors = [s.translation_error_m for s in scores if s.outcome == "tp"]
     return TrackScore(
@@ -253,4 +279,5 @@ def score_tracks(
         if first_target is not None and first_tp is not None
         else float("nan"),
         t_error_median_m=float(np.median(errors)) if errors else float("nan"),
+        held_while_hidden=held,
     )

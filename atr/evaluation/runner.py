@@ -15,6 +15,7 @@ A scene is a frame k >= gap (a frame that has an SfM partner); every pipeline is
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -186,6 +187,15 @@ class SceneRecord:
         p_cam = T_est[:3, :3].T @ (p - T_est[:3, 3])
         return T_true[:3, :3] @ p_cam + T_true[:3, 3]
 
+    def sensor_relative_yaw(self, yaw_rad: float) -> float:
+        """A detected world heading carried into the true world frame through the camera, as
+        `sensor_relative` carries a position (the heading error of the navigation removed).
+        """
+        if self.T_world_cam_true is None or self.T_world_cam_est is None:
+            return yaw_rad
+        R = np.asarray(self.T_world_cam_true)[:3, :3] @ np.asarray(self.T_world_cam_est)[:3, :3].T
+        return float(yaw_rad + math.atan2(R[1, 0], R[0, 0]))
+
     @property
     def nav_error_m(self) -> float:
         """Distance between the estimated and the true camera position, metres (NaN when unknown)."""
@@ -235,10 +245,14 @@ def truth_of(frame: SensorFrame) -> list[dict[str, Any]]:
 
 
 def detection_dict(target: str, T_world_target: np.ndarray, score: float) -> dict[str, Any]:
-    """One detection as SceneRecord.detections holds it."""
+    """One detection as SceneRecord.detections holds it: position, heading about z (what the tracker
+    gates and fuses, as `TrackInput.from_pose` reads a Detections message) and score.
+    """
+    T = np.asarray(T_world_target, np.float64)
     return {
         "target": target,
-        "position_m": [float(x) for x in np.asarray(T_world_target)[:3, 3]],
+        "position_m": [float(x) for x in T[:3, 3]],
+        "yaw_rad": float(math.atan2(T[1, 0], T[0, 0])),
         "score": float(score),
     }
 

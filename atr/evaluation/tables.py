@@ -69,28 +69,31 @@ def track_score(
     """Run the tracker (services/tracker's) over a run's scenes and judge its confirmed tracks.
 
     The detections enter the tracker as scoring sees them (`sensor_relative`: the pipeline's navigation
-    drift is reported apart); a scene a stage refused has no Detections, so the tracker skips it as the
-    service would. Confirmed and lost (coasting) tracks of the target are the scene's hypotheses.
+    drift is reported apart), with their headings; a scene a stage refused has no Detections, so the
+    tracker skips it as the service would. Confirmed and lost (coasting) tracks of the target are the
+    scene's hypotheses; a target in the scene but below the visibility rule is "hidden".
     """
     tracker = Tracker(config)
-    truth, tracks = [], []
+    truth, hidden, tracks = [], [], []
     for record in records:
         if record.error is None:
             tracker.update(
                 [
                     TrackInput(
-                        d["target"], record.sensor_relative(d["position_m"]), d.get("yaw_rad")
+                        d["target"],
+                        record.sensor_relative(d["position_m"]),
+                        record.sensor_relative_yaw(d["yaw_rad"]) if "yaw_rad" in d else None,
                     )
                     for d in record.detections
                 ],
                 record.stamp_ns,
             )
+        instances = [t for t in record.truth if t["name"] == target]
         truth.append(
-            [
-                np.asarray(t["position_m"], np.float64)
-                for t in record.truth
-                if t["name"] == target and t["visible_fraction"] >= present
-            ]
+            [np.asarray(t["position_m"]) for t in instances if t["visible_fraction"] >= present]
+        )
+        hidden.append(
+            [np.asarray(t["position_m"]) for t in instances if t["visible_fraction"] < present]
         )
         established = [t for t in tracker.tracks if t.target == target and t.state != "tentative"]
         tracks.append(
@@ -99,7 +102,7 @@ def track_score(
                 for t in sorted(established, key=lambda t: (-t.hits, t.id))
             ]
         )
-    return score_tracks(truth, tracks)
+    return score_tracks(truth, tracks, hidden_positions_m=hidden)
 
 
 def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[dict], list[dict]]:
@@ -141,6 +144,7 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
                 "track_f1": ts.counts.f1,
                 "false_tracks": ts.false_tracks,
                 "scenes_to_confirm": ts.scenes_to_confirm,
+                "track_held_while_hidden": ts.held_while_hidden,
                 "track_t_error_median_m": ts.t_error_median_m,
             }
             sc = preset(flight.scenario, flight.run)

@@ -33,6 +33,7 @@ CONTRACT = {
     "track_f1",
     "false_tracks",
     "scenes_to_confirm",
+    "track_held_while_hidden",
     "track_t_error_median_m",
 }
 
