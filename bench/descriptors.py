@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
+from pathlib import Path
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # the goal is stated for one core
 os.environ.setdefault("OMP_NUM_THREADS", "1")  # Open3D's reference FPFH on one core too
@@ -21,20 +23,9 @@ import numpy as np  # noqa: E402
 
 from atr.features3d import DESCRIPTOR_NAMES, describe, estimate_normals, is_available  # noqa: E402
 
-
-def bumpy_sphere(n: int, seed: int) -> np.ndarray:
-    """n points on a closed bumpy surface of radius ~1 m (no symmetry)."""
-    rng = np.random.default_rng(seed)
-    u = rng.normal(size=(n, 3))
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    theta, phi = np.arccos(u[:, 2]), np.arctan2(u[:, 1], u[:, 0])
-    r = (
-        1.0
-        + 0.18 * np.sin(3 * theta) * np.cos(2 * phi)
-        + 0.1 * np.cos(5 * theta + phi)
-        + 0.06 * np.sin(7 * phi)
-    )
-    return u * r[:, None]
+# the closed bumpy surface of the descriptor property tests
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "features3d"))
+from _surfaces import bumpy_sphere  # noqa: E402
 
 
 def resolution(points: np.ndarray) -> float:

@@ -27,7 +27,7 @@ from atr.sfm.correspondences import (
 )
 from atr.sfm.dense import matching_scale, sgm_correspondences
 from atr.sfm.pipeline import reconstruct
-from atr.sfm.repeatability import matching_score, repeatability
+from atr.sfm.repeatability import HomographyPair, matching_score, repeatability
 from atr.sfm.triangulation import (
     epipolar_distances_px,
     predict_on_fixation_plane,
@@ -266,13 +266,14 @@ def repeatability_table(img: np.ndarray) -> None:
         M = cv2.getRotationMatrix2D((w / 2, h / 2), angle, scale)
         H = np.vstack([M, [0, 0, 1]])
         warped = cv2.warpAffine(img, M, (w, h), flags=cv2.INTER_LINEAR)
+        pair = HomographyPair(H, (w, h), (w, h))
         row = [f"rot {angle} deg, scale {scale}"]
         for run in (run_surf, run_sift):
             ka, da = run(img)
             kb, db = run(warped)
-            rep = repeatability(ka, kb, H, (w, h), (w, h), tolerance_px)
-            ia, ib = match_nndr(da, db, 0.6)
-            score, precision = matching_score(ka, kb, ia, ib, H, (w, h), (w, h), tolerance_px)
+            rep = repeatability(ka, kb, pair, tolerance_px)
+            matches = match_nndr(da, db, 0.6)
+            score, precision = matching_score(ka, kb, matches, pair, tolerance_px)
             row += [str(len(ka)), f"{rep:.2f}", f"{score:.2f}", f"{precision:.2f}"]
         print("| " + " | ".join(row) + " |")
 

@@ -19,7 +19,7 @@ rotations of a descriptor (``azimuth_rotations``).
 from __future__ import annotations
 
 import math
-from typing import Literal
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -27,7 +27,12 @@ import numpy as np
 from atr.errors import ConfigError, InputError
 from atr.features3d._neighbours import Neighbourhoods, RadiusSearch
 from atr.features3d._shot import _check
-from atr.features3d.config import SC3D_DEFAULT, ShapeContextConfig
+from atr.features3d.config import (
+    SC3D_DEFAULT,
+    ShapeContext3dParams,
+    ShapeContextConfig,
+    ShapeContextParams,
+)
 
 _TANGENT_EPS = 1e-6  # PCL master: below this norm the projected farthest neighbour cannot define x
 
@@ -135,14 +140,67 @@ def _shape_context_all(
     return out
 
 
+@dataclass(frozen=True)
+class ShapeContextRadii:
+    """The radii of a shape-context histogram, metres.
+
+    Attributes:
+        radius: support radius R, the last radial edge.
+        minimal_radius: first radial edge, in (0, R).
+        point_density_radius: radius of the local density ρ(q) that weights each neighbour (> 0).
+
+    """
+
+    radius: float
+    minimal_radius: float
+    point_density_radius: float
+
+    def __post_init__(self) -> None:
+        if not 0 < self.minimal_radius < self.radius:
+            raise ConfigError(
+                f"minimal_radius {self.minimal_radius} m must be in (0, {self.radius}) m"
+            )
+        if not self.point_density_radius > 0:
+            raise ConfigError(f"point_density_radius {self.point_density_radius} m must be > 0")
+
+
+def resolve_params(
+    radius: float, params: ShapeContextParams, config: ShapeContextConfig
+) -> tuple[ShapeContextRadii, ShapeContextConfig]:
+    """The radii and bins of one call: each parameter given in ``params``, else the config's default.
+
+    Args:
+        radius: support radius R, metres.
+        params: per-call overrides (None fields take the config's).
+        config: bins and the default radii as fractions of R.
+
+    Returns:
+        (radii in metres, the config with the bins overridden).
+
+    Raises:
+        ConfigError: minimal radius not in (0, R), density radius not > 0, or a bin count < 1.
+
+    """
+    cfg = _with_bins(config, params.azimuth_bins, params.elevation_bins, params.radial_bins)
+    r_min = (
+        cfg.k_minimal_radius * radius
+        if params.minimal_radius is None
+        else float(params.minimal_radius)
+    )
+    r_dens = (
+        cfg.k_point_density_radius * radius
+        if params.point_density_radius is None
+        else float(params.point_density_radius)
+    )
+    return ShapeContextRadii(radius, r_min, r_dens), cfg
+
+
 def shape_context_histograms(
     points: np.ndarray,
     centres: np.ndarray,
     frames: np.ndarray,
     nb: Neighbourhoods,
-    radius: float,
-    minimal_radius: float,
-    point_density_radius: float,
+    radii: ShapeContextRadii,
     config: ShapeContextConfig,
 ) -> np.ndarray:
     """Shape-context histograms of 3DSC/USC for given frames (rows x, ·, z = the local axis).
@@ -151,23 +209,19 @@ def shape_context_histograms(
         points: (N, 3) float64 surface, metres.
         centres: (K, 3) float64 feature points, metres.
         frames: (K, 3, 3) float64; rows 0 and 2 are used (x and z); a non-finite frame gives a NaN row.
-        nb: neighbourhoods of the centres within ``radius``.
-        radius, minimal_radius, point_density_radius: metres.
+        nb: neighbourhoods of the centres within ``radii.radius``.
+        radii: support, minimal and point-density radii, metres.
         config: bins and minimum neighbour count.
 
     Returns:
         (K, L·E·J) float32.
 
     """
-    if not 0 < minimal_radius < radius:
-        raise ConfigError(f"minimal_radius {minimal_radius} m must be in (0, {radius}) m")
-    if not point_density_radius > 0:
-        raise ConfigError(f"point_density_radius {point_density_radius} m must be > 0")
-    r_e, th_e, phi_e, inv = bin_edges(radius, minimal_radius, config)
+    r_e, th_e, phi_e, inv = bin_edges(radii.radius, radii.minimal_radius, config)
     density = np.zeros(points.shape[0], dtype=np.float64)
     used = np.unique(nb.indices)
     if used.size:
-        density[used] = RadiusSearch(points, point_density_radius).count(points[used])
+        density[used] = RadiusSearch(points, radii.point_density_radius).count(points[used])
     return _shape_context_all(
         points,
         centres,
@@ -236,29 +290,11 @@ def shape_context_3d(
     normals: np.ndarray,
     keypoints: np.ndarray,
     radius: float,
-    minimal_radius: float | None = None,
-    point_density_radius: float | None = None,
-    seed: int | None = None,
-    x_axis: Literal["random", "farthest"] = "random",
-    azimuth_bins: int | None = None,
-    elevation_bins: int | None = None,
-    radial_bins: int | None = None,
+    params: ShapeContext3dParams = ShapeContext3dParams(),
     config: ShapeContextConfig = SC3D_DEFAULT,
 ) -> np.ndarray:
-    """3DSC descriptors, (K, 1980) float32 by default; see ``atr.features3d.describe``.
-
-    Args:
-        points: (N, 3) surface, metres.
-        normals: (N, 3) unit normals; the normal at the keypoint is the local axis.
-        keypoints: (K,) int indices into points.
-        radius: support radius R, metres.
-        minimal_radius: first radial edge, metres (default config.k_minimal_radius · R).
-        point_density_radius: metres (default config.k_point_density_radius · R).
-        seed: mt19937 seed of the random x axis (default config.seed = PCL's 12345).
-        x_axis: "random" (released PCL) or "farthest" (PCL master, deterministic).
-        azimuth_bins, elevation_bins, radial_bins: override the config's bins.
-        config: defaults of the above.
-
+    """3DSC descriptors, (K, 1980) float32 by default: ``describe("3dsc", ...)``, whose keywords fill
+    ``params`` (None fields take ``config``'s defaults). The normal at a keypoint is its local axis.
     """
     points, keypoints = _check(points, keypoints, radius)
     if normals is None:
@@ -266,27 +302,19 @@ def shape_context_3d(
     normals = np.asarray(normals, dtype=np.float64)
     if normals.shape != points.shape:
         raise InputError(f"normals shape {normals.shape} must equal points shape {points.shape}")
-    if x_axis not in ("random", "farthest"):
-        raise ConfigError(f"x_axis {x_axis!r} must be 'random' or 'farthest'")
-    cfg = _with_bins(config, azimuth_bins, elevation_bins, radial_bins)
-    r_min = cfg.k_minimal_radius * radius if minimal_radius is None else float(minimal_radius)
-    r_dens = (
-        cfg.k_point_density_radius * radius
-        if point_density_radius is None
-        else float(point_density_radius)
-    )
+    radii, cfg = resolve_params(radius, params, config)
     centres = points[keypoints]
     nb = RadiusSearch(points, radius).query(centres, sort=True)
     n_k = normals[keypoints]
     finite_n = np.isfinite(n_k).all(axis=1) & np.isfinite(centres).all(axis=1)
     # PCL draws for every point with at least one neighbour and a finite normal, described or not.
     drawn = finite_n & (nb.counts() > 0)
-    if x_axis == "random":
-        x = _random_x_axes(n_k, drawn, cfg.seed if seed is None else int(seed))
+    if params.x_axis == "random":
+        x = _random_x_axes(n_k, drawn, cfg.seed if params.seed is None else int(params.seed))
     else:
         x = _farthest_x_axes(points, centres, n_k, nb)
     frames = np.stack([x, np.cross(n_k, x), n_k], axis=1)
-    return shape_context_histograms(points, centres, frames, nb, radius, r_min, r_dens, cfg)
+    return shape_context_histograms(points, centres, frames, nb, radii, cfg)
 
 
 def azimuth_rotations(

@@ -13,6 +13,7 @@ that cannot be described gets a NaN row.
 from __future__ import annotations
 
 import importlib
+from dataclasses import fields
 from typing import Any
 
 import numpy as np
@@ -24,7 +25,10 @@ from atr.features3d.config import (
     DESCRIPTOR_LENGTHS,
     DESCRIPTOR_NAMES,
     NormalConfig,
+    ShapeContext3dParams,
+    ShapeContextParams,
     ShotConfig,
+    UscParams,
     description_radius,
 )
 
@@ -50,6 +54,9 @@ _DISPATCH: dict[str, tuple[str, str, bool]] = {
     "hod": ("atr.features3d._hod", "hod", False),
     "hod-s": ("atr.features3d._hod", "hod", False),
 }
+
+# Descriptors whose PCL parameters travel as one typed object: describe() builds it from its keywords.
+_PARAMS: dict[str, type[ShapeContextParams]] = {"usc": UscParams, "3dsc": ShapeContext3dParams}
 
 
 def estimate_normals(
@@ -162,6 +169,8 @@ def describe(
     if needs_normals and normals is None:
         raise InputError(f"descriptor {name!r} needs normals; got None")
     keypoints = np.asarray(keypoints)
+    if name in _PARAMS:
+        params = {"params": _typed_params(name, params)}
     if name in ("hod", "hod-s"):
         out = func(points, keypoints, radius, short=(name == "hod-s"), **params)
     elif needs_normals:
@@ -169,3 +178,15 @@ def describe(
     else:
         out = func(points, keypoints, radius, **params)
     return np.asarray(out, dtype=np.float32)
+
+
+def _typed_params(name: str, params: dict[str, Any]) -> ShapeContextParams:
+    """The params object of descriptor ``name`` from describe()'s keywords."""
+    cls = _PARAMS[name]
+    names = [f.name for f in fields(cls)]
+    unknown = sorted(set(params) - set(names))
+    if unknown:
+        raise ConfigError(
+            f"descriptor {name!r} has no parameter {unknown}; expected some of {names}"
+        )
+    return cls(**params)

@@ -485,31 +485,11 @@ def rops(
     k_count = kp64.shape[0]
     if k_count == 0:
         return np.empty((0, out_len), dtype=np.float32)
+    if triangles is not None and np.asarray(triangles).size == 0:
+        return np.full((k_count, out_len), np.nan, dtype=np.float32)
     pts = np.ascontiguousarray(pts64, dtype=np.float32)
     kp = np.ascontiguousarray(kp64, dtype=np.float32)
-
-    use_mesh = triangles is not None
-    if use_mesh:
-        tris = np.asarray(triangles)
-        if tris.size == 0:
-            return np.full((k_count, out_len), np.nan, dtype=np.float32)
-        if tris.ndim != 2 or tris.shape[1] != 3 or not np.issubdtype(tris.dtype, np.integer):
-            raise InputError(
-                f"triangles shape {tris.shape} dtype {tris.dtype} must be (M, 3) integer"
-            )
-        tris = np.ascontiguousarray(tris, dtype=np.int64)
-        if tris.min() < 0 or tris.max() >= pts.shape[0]:
-            raise InputError(
-                f"triangle vertex ids span [{tris.min()}, {tris.max()}], expected within [0, {pts.shape[0]})"
-            )
-        finite_tri = np.isfinite(pts64[tris]).all(axis=(1, 2))
-        tris = np.ascontiguousarray(tris[finite_tri])
-        inc_off, inc_tri = _incidence(tris, pts.shape[0])
-    else:
-        tris = np.zeros((0, 3), dtype=np.int64)
-        inc_off = np.zeros(pts.shape[0] + 1, dtype=np.int64)
-        inc_tri = np.zeros(0, dtype=np.int64)
-
+    tris, inc_off, inc_tri = _local_mesh(triangles, pts64)
     offsets, nbrs = radius_csr(pts, kp, r)
     return _rops_kernel(
         pts,
@@ -518,7 +498,7 @@ def rops(
         nbrs,
         pcl_squared_radius(r),
         np.float32(r),
-        use_mesh,
+        triangles is not None,
         tris,
         inc_off,
         inc_tri,
@@ -527,3 +507,31 @@ def rops(
         out_len,
         ROPS_MIN_POINTS,
     )
+
+
+def _local_mesh(
+    triangles: np.ndarray | None, pts64: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The checked triangles with finite vertices and each vertex's triangles (CSR offsets, ids).
+
+    Empty arrays for the point-based variant (``triangles`` None).
+    """
+    n_points = pts64.shape[0]
+    if triangles is None:
+        return (
+            np.zeros((0, 3), dtype=np.int64),
+            np.zeros(n_points + 1, dtype=np.int64),
+            np.zeros(0, dtype=np.int64),
+        )
+    tris = np.asarray(triangles)
+    if tris.ndim != 2 or tris.shape[1] != 3 or not np.issubdtype(tris.dtype, np.integer):
+        raise InputError(f"triangles shape {tris.shape} dtype {tris.dtype} must be (M, 3) integer")
+    tris = np.ascontiguousarray(tris, dtype=np.int64)
+    if tris.min() < 0 or tris.max() >= n_points:
+        raise InputError(
+            f"triangle vertex ids span [{tris.min()}, {tris.max()}], expected within [0, {n_points})"
+        )
+    finite_tri = np.isfinite(pts64[tris]).all(axis=(1, 2))
+    tris = np.ascontiguousarray(tris[finite_tri])
+    inc_off, inc_tri = _incidence(tris, n_points)
+    return tris, inc_off, inc_tri

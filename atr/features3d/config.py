@@ -196,3 +196,53 @@ class ShapeContextConfig:
 # PCL's defaults: ShapeContext3DEstimation 12 x 11 x 15; UniqueShapeContext 14 x 14 x 10.
 SC3D_DEFAULT = ShapeContextConfig(azimuth_bins=12, elevation_bins=11, radial_bins=15)
 USC_DEFAULT = ShapeContextConfig(azimuth_bins=14, elevation_bins=14, radial_bins=10)
+
+
+@dataclass(frozen=True)
+class ShapeContextParams:
+    """Per-call parameters of 3DSC and USC, with PCL's names; None takes the default from the config.
+
+    Attributes:
+        minimal_radius: first radial edge, metres (default ShapeContextConfig.k_minimal_radius · R).
+        point_density_radius: metres (default ShapeContextConfig.k_point_density_radius · R).
+        azimuth_bins: override of the config's azimuth sectors.
+        elevation_bins: override of the config's elevation sectors.
+        radial_bins: override of the config's radial shells.
+
+    """
+
+    minimal_radius: float | None = None
+    point_density_radius: float | None = None
+    azimuth_bins: int | None = None
+    elevation_bins: int | None = None
+    radial_bins: int | None = None
+
+
+@dataclass(frozen=True)
+class ShapeContext3dParams(ShapeContextParams):
+    """Per-call parameters of 3DSC (PCL's ShapeContext3DEstimation).
+
+    Attributes:
+        seed: mt19937 seed of the random x axis (default ShapeContextConfig.seed = PCL's 12345).
+        x_axis: "random" (released PCL) or "farthest" (PCL master, deterministic).
+
+    """
+
+    seed: int | None = None
+    x_axis: Literal["random", "farthest"] = "random"
+
+    def __post_init__(self) -> None:
+        if self.x_axis not in ("random", "farthest"):
+            raise ConfigError(f"x_axis {self.x_axis!r} must be 'random' or 'farthest'")
+
+
+@dataclass(frozen=True)
+class UscParams(ShapeContextParams):
+    """Per-call parameters of USC (PCL's UniqueShapeContext).
+
+    Attributes:
+        lrf_radius: SHOT LRF radius, metres (default R).
+
+    """
+
+    lrf_radius: float | None = None

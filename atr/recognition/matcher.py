@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from atr.recognition import _backend
+from atr.recognition import _backend, steps
 from atr.recognition.config import MatcherConfig, RecognitionConfig
 from atr.recognition.scene import (
     EmptyScene,
@@ -32,21 +32,7 @@ from atr.recognition.scene import (
     template_views,
     validated_cloud,
 )
-from atr.recognition.steps import (
-    Correspondences,
-    HoughSettings,
-    Hypothesis,
-    PointSet,
-    Verification,
-    VerifySettings,
-    descriptor_sq_distances,
-    drop_repeated_hypotheses,
-    group_geometrically_consistent,
-    group_upright_hough,
-    knndr_from_distances,
-    ransac_per_group,
-    verify_with_icp,
-)
+from atr.recognition.steps import Correspondences, Hypothesis
 from atr.recognition.template import Template, model_extent_m
 
 STAGES: tuple[str, ...] = (
@@ -255,11 +241,11 @@ class _Search:
     ) -> list[np.ndarray]:
         c, m, s = self.config, self.config.matcher, self.scene
         if not s.upright:
-            return group_geometrically_consistent(
+            return steps.group_geometrically_consistent(
                 s.keypoints, model_kp, corr, c.consensus_m, m.min_group_size, m.max_groups
             )
         res_m = c.template.resolution_m
-        settings = HoughSettings(
+        settings = steps.HoughSettings(
             cell_m=m.k_hough_cell * res_m,
             yaw_bin_rad=np.radians(m.hough_yaw_bin_deg),
             height_tol_m=c.ground.k_height_tol * res_m,
@@ -267,7 +253,7 @@ class _Search:
             max_groups=m.max_groups,
         )
         window = heading_window(s, views, vi, corr, m.view_yaw_margin_deg)
-        return group_upright_hough(
+        return steps.group_upright_hough(
             s.keypoints, s.height[s.kp_idx], model_kp, corr, settings, window
         )
 
@@ -286,21 +272,22 @@ class _Search:
             ((vi, g) for vi, view_groups in enumerate(groups) for g in view_groups),
             key=lambda vg: -len(vg[1]),
         )[: m.max_groups]
+        settings = steps.RansacSettings(
+            m.ransac_iterations, c.ransac_inlier_m, upright=self.scene.upright
+        )
         hyps: list[tuple[int, Hypothesis]] = []
         for vi, g in ranked:
-            h = ransac_per_group(
+            h = steps.ransac_per_group(
                 self.scene.keypoints,
                 model_kp[views.slices[vi][1]],
                 matches[vi],
                 g,
-                m.ransac_iterations,
-                c.ransac_inlier_m,
+                settings,
                 self.rng,
-                upright=self.scene.upright,
             )
             if h is not None and h.inliers >= m.min_group_size:
                 hyps.append((vi, h))
-        distinct = drop_repeated_hypotheses(
+        distinct = steps.drop_repeated_hypotheses(
             hyps, c.same_hypothesis_m, np.radians(m.same_hypothesis_deg)
         )
         return distinct, len(hyps)
@@ -310,7 +297,7 @@ class _Search:
     ) -> int:
         """ICP verification and acceptance (§II-B-2 overlap, our clutter and ground rules)."""
         c, m = self.config, self.config.matcher
-        settings = VerifySettings(
+        settings = steps.VerifySettings(
             icp_gate_m=c.icp_gate_m,
             overlap_m=c.overlap_m,
             icp_iterations=m.icp_iterations,
@@ -320,12 +307,14 @@ class _Search:
         )
         model_all = np.asarray(tpl.points_m, np.float64)
         extent = model_extent_m(tpl)
-        view_models: dict[int, PointSet] = {}
+        view_models: dict[int, steps.PointSet] = {}
         accepted = 0
         for vi, h in hyps:
             if vi not in view_models:
-                view_models[vi] = PointSet(model_all[views.slices[vi][0]])
-            v = verify_with_icp(view_models[vi], self.scene.surface, h.T_scene_model, settings)
+                view_models[vi] = steps.PointSet(model_all[views.slices[vi][0]])
+            v = steps.verify_with_icp(
+                view_models[vi], self.scene.surface, h.T_scene_model, settings
+            )
             on_ground = self.ground.stands(v.T_scene_model)
             self.verified.append(
                 (
@@ -352,7 +341,7 @@ class _Search:
         return accepted
 
 
-def _acceptable(v: Verification, m: MatcherConfig) -> bool:
+def _acceptable(v: steps.Verification, m: MatcherConfig) -> bool:
     """The paper's overlap test (§II-B-2) and our clutter bound."""
     return (
         v.overlap >= m.min_overlap
@@ -393,9 +382,9 @@ def _match_views(
             continue
         cols = np.concatenate([np.arange(views[v][1].start, views[v][1].stop) for v in in_ring])
         owner = np.concatenate([np.full(views[v][1].stop - views[v][1].start, v) for v in in_ring])
-        d2 = descriptor_sq_distances(take(scene_desc, rows), take(model_desc, cols))
+        d2 = steps.descriptor_sq_distances(take(scene_desc, rows), take(model_desc, cols))
         if config.knn_across_views:
-            c = knndr_from_distances(d2, config.knndr_k, config.knndr_ratio)
+            c = steps.knndr_from_distances(d2, config.knndr_k, config.knndr_ratio)
             for v in in_ring:
                 sel = np.flatnonzero(owner[c.model] == v)
                 out[v] = Correspondences(
@@ -405,7 +394,7 @@ def _match_views(
             start = 0
             for v in in_ring:
                 n = views[v][1].stop - views[v][1].start
-                c = knndr_from_distances(
+                c = steps.knndr_from_distances(
                     d2[:, start : start + n],
                     config.knndr_k,
                     config.knndr_ratio,

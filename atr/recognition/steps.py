@@ -341,7 +341,7 @@ def group_upright_hough(
         list of (G_i,) int64 arrays of indices into ``corr``, largest first.
 
     """
-    min_size, max_groups = settings.min_size, settings.max_groups
+    min_size = settings.min_size
     if len(corr) < min_size:
         return []
     s = np.asarray(scene_keypoints, np.float64)[corr.scene]
@@ -352,15 +352,7 @@ def group_upright_hough(
         return []
     n_bins = max(1, int(round(2 * np.pi / settings.yaw_bin_rad)))
     centres = (np.arange(n_bins) + 0.5) * (2 * np.pi / n_bins)
-    if yaw_window is None:
-        window = np.ones((len(ok), n_bins), np.int8)
-    else:
-        limit = yaw_window.half_width_rad + 0.5 * (2 * np.pi / n_bins)
-        yaw = np.asarray(yaw_window.centre_rad, np.float64)[ok]
-        window = _kernels.yaw_window(yaw, centres, limit)
-        if (window < 0).any():  # too close to call arithmetically: the exact rule decides
-            r, b = np.nonzero(window < 0)
-            window[r, b] = np.abs(np.angle(np.exp(1j * (centres[b] - yaw[r])))) <= limit
+    window = _heading_bins_allowed(yaw_window, ok, centres)
     ci, cell, nx, ny = _kernels.hough_votes(
         np.ascontiguousarray(s),
         np.ascontiguousarray(m),
@@ -372,12 +364,43 @@ def group_upright_hough(
     )
     if len(ci) == 0:
         return []
+    return _claim_peaks(cell, ci, (n_bins, nx, ny), len(corr), settings)
+
+
+def _heading_bins_allowed(
+    yaw_window: YawWindow | None, ok: np.ndarray, centres: np.ndarray
+) -> np.ndarray:
+    """(len(ok), bins) int8: 1 where correspondence ``ok[i]`` may vote for heading bin b."""
+    n_bins = len(centres)
+    if yaw_window is None:
+        return np.ones((len(ok), n_bins), np.int8)
+    limit = yaw_window.half_width_rad + 0.5 * (2 * np.pi / n_bins)
+    yaw = np.asarray(yaw_window.centre_rad, np.float64)[ok]
+    window = _kernels.yaw_window(yaw, centres, limit)
+    if (window < 0).any():  # too close to call arithmetically: the exact rule decides
+        r, b = np.nonzero(window < 0)
+        window[r, b] = np.abs(np.angle(np.exp(1j * (centres[b] - yaw[r])))) <= limit
+    return window
+
+
+def _claim_peaks(
+    cell: np.ndarray,
+    ci: np.ndarray,
+    shape: tuple[int, int, int],
+    n_corr: int,
+    settings: HoughSettings,
+) -> list[np.ndarray]:
+    """Groups from the accumulator's votes (cell, correspondence), largest first.
+
+    ``shape`` is the accumulator's (heading bins, x cells, y cells).
+    """
     # A correspondence votes at most once per bin, so a cell's votes are distinct correspondences.
     # Peaks are taken most votes first, ties in (bin, x, y) order.
     by_cell = _kernels.stable_argsort_nonnegative(cell)
     cell, ci = cell[by_cell], ci[by_cell]
-    peaks, counts = _kernels.count_runs(cell, min_size)
+    peaks, counts = _kernels.count_runs(cell, settings.min_size)
     peaks = peaks[np.argsort(-counts, kind="stable")]
+    n_bins, nx, ny = shape
     members, sizes = _kernels.claim_hough_groups(
         cell,
         ci,
@@ -385,9 +408,9 @@ def group_upright_hough(
         n_bins,
         nx,
         ny,
-        len(corr),
-        min_size,
-        -1 if max_groups is None else max_groups,
+        n_corr,
+        settings.min_size,
+        -1 if settings.max_groups is None else settings.max_groups,
     )
     groups = np.split(members, np.cumsum(sizes)[:-1]) if len(sizes) else []
     groups.sort(key=lambda g: -len(g))  # stable: equal sizes keep peak order
@@ -452,15 +475,30 @@ def _turns_about_z(yaw: np.ndarray) -> np.ndarray:
     return R
 
 
+@dataclass(frozen=True)
+class RansacSettings:
+    """Settings of RANSAC on one group (``ransac_per_group``).
+
+    Attributes:
+        iterations: samples of 3 correspondences drawn (§II-B-2: 1000).
+        inlier_m: a correspondence is an inlier when its scene residual is below this, metres.
+        upright: fit a heading and a translation only (a vehicle standing on the ground), not a full
+            rigid transform.
+
+    """
+
+    iterations: int
+    inlier_m: float
+    upright: bool = False
+
+
 def ransac_per_group(
     scene_keypoints: np.ndarray,
     model_keypoints: np.ndarray,
     corr: Correspondences,
     group: np.ndarray,
-    iterations: int,
-    inlier_m: float,
+    settings: RansacSettings,
     rng: np.random.Generator,
-    upright: bool = False,
 ) -> Hypothesis | None:
     """RANSAC on one consistent group (§II-B-2, 1000 iterations) -> a transformation hypothesis.
 
@@ -470,10 +508,19 @@ def ransac_per_group(
     stands on the ground, and a side view's nearly coplanar keypoints otherwise let the 3-point fit tilt
     the model by tens of degrees (docs/recognition.md).
 
+    Args:
+        scene_keypoints: (S, 3) metres.
+        model_keypoints: (M, 3) metres.
+        corr: correspondences.
+        group: (G,) indices into ``corr``.
+        settings: iterations, inlier distance, upright or rigid.
+        rng: draws the samples (the only randomness of the matcher).
+
     Returns:
         The hypothesis, or None when the group has fewer than 3 correspondences or no non-degenerate sample.
 
     """
+    iterations, inlier_m, upright = settings.iterations, settings.inlier_m, settings.upright
     s = np.asarray(scene_keypoints[corr.scene[group]], np.float64)
     m = np.asarray(model_keypoints[corr.model[group]], np.float64)
     n = len(group)

@@ -63,20 +63,8 @@ def check_same_size(image_a: np.ndarray, image_b: np.ndarray) -> None:
 def gftt_klt_correspondences(
     image_a: np.ndarray, image_b: np.ndarray, config: SfmConfig
 ) -> Correspondences:
-    """GFTT corners in image a tracked into image b by pyramidal KLT with a forward-backward check.
-
-    Args:
-        image_a: (H, W) or (H, W, 3) uint8 (or float in [0, 1]) first image.
-        image_b: the second image, same size.
-        config: GFTT and KLT settings (§II-B-1).
-
-    Returns:
-        (N, 2) float32 pixels in image a and (N, 2) float32 pixels in image b; N may be 0
-        (black or featureless image).
-
-    Raises:
-        InputError: malformed images or different sizes.
-
+    """GFTT corners in image a tracked into image b by pyramidal KLT with a forward-backward check
+    (§II-B-1): the pixels of ``gftt_klt_with_stats`` without its counters.
     """
     pixels_a, pixels_b, _ = gftt_klt_with_stats(image_a, image_b, config)
     return pixels_a, pixels_b
@@ -88,17 +76,25 @@ def gftt_klt_with_stats(
     config: SfmConfig,
     predict: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray] | None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
-    """As gftt_klt_correspondences, plus counters: keypoints, tracked, rejected_forward_backward.
+    """GFTT corners in image a tracked into image b by pyramidal KLT with a forward-backward check.
 
     Args:
-        image_a: first image.
-        image_b: second image, same size.
-        config: GFTT and KLT settings.
+        image_a: (H, W) or (H, W, 3) uint8 (or float in [0, 1]) first image.
+        image_b: the second image, same size.
+        config: GFTT and KLT settings (§II-B-1).
         predict: maps corners of image a to their predicted pixels in image b and a mask of the
             corners the prediction holds for (``predict_on_fixation_plane`` with the known poses), or
             to None. Given, it is called with the corners the paper's tracker loses, and those the
             mask keeps are tracked again by a shallow KLT started at the prediction
             (``klt_aided_pyramid_levels``), counted in "tracked_aided".
+
+    Returns:
+        (N, 2) float32 pixels in image a, (N, 2) float32 pixels in image b (N may be 0: a black or
+        featureless image), and the counters keypoints, tracked, rejected_forward_backward,
+        tracked_aided.
+
+    Raises:
+        InputError: malformed images or different sizes.
 
     """
     gray_a = as_gray_u8(image_a, "image_a")
@@ -235,19 +231,8 @@ def detect_gftt(gray_u8: np.ndarray, config: SfmConfig) -> np.ndarray:
 def surf_correspondences(
     image_a: np.ndarray, image_b: np.ndarray, config: SfmConfig
 ) -> Correspondences:
-    """SURF keypoints in both images matched by the nearest-neighbour distance ratio (§II-B-1).
-
-    Args:
-        image_a: (H, W) or (H, W, 3) uint8 (or float in [0, 1]) first image.
-        image_b: the second image, same size.
-        config: surf_* settings and surf_nndr.
-
-    Returns:
-        (N, 2) float32 pixels in image a and (N, 2) float32 pixels in image b; N may be 0.
-
-    Raises:
-        InputError: malformed images or different sizes.
-
+    """SURF keypoints in both images matched by the nearest-neighbour distance ratio (§II-B-1): the
+    pixels of ``surf_with_stats`` without its counters.
     """
     pixels_a, pixels_b, _ = surf_with_stats(image_a, image_b, config)
     return pixels_a, pixels_b
@@ -259,16 +244,23 @@ def surf_with_stats(
     config: SfmConfig,
     epipolar: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
-    """As surf_correspondences, plus counters: keypoints (image a), keypoints_b, tracked (= matched).
+    """SURF keypoints in both images matched by the nearest-neighbour distance ratio (§II-B-1).
 
     Args:
-        image_a: first image.
-        image_b: second image, same size.
-        config: SURF and NNDR settings.
+        image_a: (H, W) or (H, W, 3) uint8 (or float in [0, 1]) first image.
+        image_b: the second image, same size.
+        config: surf_* settings and surf_nndr.
         epipolar: maps keypoints of a and b to their (Na, Nb) epipolar distances in pixels
             (``epipolar_distances_px`` with the known poses), or None. Given, and with
             ``surf_epipolar_guided``, NNDR compares only the keypoints of b within the triangulation's
             reprojection gate of each epipolar line, and a pair must pass it from both sides.
+
+    Returns:
+        (N, 2) float32 pixels in image a, (N, 2) float32 pixels in image b (N may be 0), and the
+        counters keypoints (image a), keypoints_b, tracked (= matched).
+
+    Raises:
+        InputError: malformed images or different sizes.
 
     """
     gray_a = as_gray_u8(image_a, "image_a")

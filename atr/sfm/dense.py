@@ -10,6 +10,8 @@ triangulated like the sparse ones, so the gates and the per-point sigma stay the
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
@@ -45,11 +47,9 @@ def sgm_correspondences(
         optical axis: the epipole lies in or near the image).
 
     """
-    h, w = gray_a.shape
     T_ba = relative_camera_pose(T_world_cam_a, T_world_cam_b)
-    R_ba, t_ba = T_ba[:3, :3], T_ba[:3, 3]
     stats: dict[str, int | float] = {"keypoints": 0, "tracked": 0}
-    rotation_deg = _rectifying_rotation_deg(R_ba, t_ba)
+    rotation_deg = _rectifying_rotation_deg(T_ba[:3, :3], T_ba[:3, 3])
     if rotation_deg > config.sgm_max_rectifying_rotation_deg:
         reason = (
             f"baseline {90.0 - rotation_deg:.1f} deg from the optical axis: rectifying would turn a camera "
@@ -57,16 +57,69 @@ def sgm_correspondences(
             f"{config.sgm_max_rectifying_rotation_deg} (forward motion)"
         )
         return np.zeros((0, 2)), np.zeros((0, 2)), stats, reason
-
     dist = np.zeros(5) if dist_coeffs is None else np.asarray(dist_coeffs, np.float64)
+    scale = matching_scale(K, T_world_cam_a, T_world_cam_b, config)
+    pair = _rectify_pair(gray_a, gray_b, K, dist, T_ba, scale, config.sgm_block_px)
+    stats["scale"] = scale
+    n_disparities = _disparities_to_search(pair, K, dist, T_world_cam_a, config)
+    stats["disparities"] = n_disparities
+    disparity = _semi_global_disparity(pair, n_disparities, config)
+    rows, cols, d, valid = _textured_grid(pair, disparity, config)
+    stats["keypoints"] = int(d.size)
+    stats["tracked"] = int(np.count_nonzero(valid))
+    pixels_a, pixels_b = _original_pixels(pair, rows[valid], cols[valid], d[valid], K)
+    return pixels_a, pixels_b, stats, ""
+
+
+@dataclass(frozen=True)
+class _RectifiedPair:
+    """The pair rectified with the known pose and scaled for matching, as the matcher takes it: the left
+    image is the one whose points lie further along the baseline, and the baseline runs along rows.
+
+    Attributes:
+        left, right: the rectified images at the matching scale (transposed when ``vertical``).
+        inside_left, inside_right: where each holds image content (not the rectification's border).
+        vertical: the baseline runs along the columns of the rectified images: they are transposed.
+        b_is_left: image b is the matcher's left image.
+        scale: the matching scale.
+        image_size: (width, height) of the full-size images, pixels.
+        R1, R2, P1, P2: cv2.stereoRectify's rectifying rotations and projections of cameras a and b.
+
+    """
+
+    left: np.ndarray
+    right: np.ndarray
+    inside_left: np.ndarray
+    inside_right: np.ndarray
+    vertical: bool
+    b_is_left: bool
+    scale: float
+    image_size: tuple[int, int]
+    R1: np.ndarray
+    R2: np.ndarray
+    P1: np.ndarray
+    P2: np.ndarray
+
+
+def _rectify_pair(
+    gray_a: np.ndarray,
+    gray_b: np.ndarray,
+    K: np.ndarray,
+    dist: np.ndarray,
+    T_ba: np.ndarray,
+    scale: float,
+    block: int,
+) -> _RectifiedPair:
+    """Rectify both images (OpenCV's stereoRectify with the known pose) and put them in the matcher's
+    order and orientation.
+    """
+    h, w = gray_a.shape
+    R_ba, t_ba = T_ba[:3, :3], T_ba[:3, 3]
     R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(
         K, dist, K, dist, (w, h), R_ba, t_ba.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY
     )
-    block = config.sgm_block_px
-    s = matching_scale(K, T_world_cam_a, T_world_cam_b, config)
-    stats["scale"] = s
-    rect_a, inside_a = _rectify(gray_a, K, dist, R1, P1, s, block)
-    rect_b, inside_b = _rectify(gray_b, K, dist, R2, P2, s, block)
+    rect_a, inside_a = _rectify(gray_a, K, dist, R1, P1, scale, block)
+    rect_b, inside_b = _rectify(gray_b, K, dist, R2, P2, scale, block)
     # stereoRectify puts the baseline along x or, for mostly vertical motion, along y; semi-global
     # matching searches along rows, so a vertical pair is matched transposed.
     vertical = abs(P2[1, 3]) > abs(P2[0, 3])
@@ -78,20 +131,37 @@ def sgm_correspondences(
     b_is_left = P2[axis, 3] > 0
     left, right = (rect_b, rect_a) if b_is_left else (rect_a, rect_b)
     inside_left, inside_right = (inside_b, inside_a) if b_is_left else (inside_a, inside_b)
+    return _RectifiedPair(
+        left, right, inside_left, inside_right, vertical, b_is_left, scale, (w, h), R1, R2, P1, P2
+    )
 
+
+def _disparities_to_search(
+    pair: _RectifiedPair,
+    K: np.ndarray,
+    dist: np.ndarray,
+    T_world_cam_a: np.ndarray,
+    config: SfmConfig,
+) -> int:
+    """How many disparities the matcher searches at the matching scale: a multiple of 16."""
     # A pixel whose true disparity lies beyond the search is not left unmatched but matched wrongly, too
     # far: at 0 deg obliquity the near ground then sinks metres below the target. So the search also
     # reaches the nearest flat ground the image sees; no disparity exceeds the image's width.
-    search_px = max(
-        float(config.sgm_disparities_px),
-        config.sgm_ground_margin
-        * ground_disparity_px(K, dist, T_world_cam_a, R1, P2, (w, h), config.ground_z_m),
+    ground_px = ground_disparity_px(
+        K, dist, T_world_cam_a, pair.R1, pair.P2, pair.image_size, config.ground_z_m
     )
-    scaled_disparities = int(np.ceil(min(search_px * s, left.shape[1]) / 16.0)) * 16
-    stats["disparities"] = scaled_disparities
+    search_px = max(float(config.sgm_disparities_px), config.sgm_ground_margin * ground_px)
+    return int(np.ceil(min(search_px * pair.scale, pair.left.shape[1]) / 16.0)) * 16
+
+
+def _semi_global_disparity(
+    pair: _RectifiedPair, n_disparities: int, config: SfmConfig
+) -> np.ndarray:
+    """Disparity of every pixel of the left image, float32 pixels at the matching scale (<= 0: none)."""
+    block = config.sgm_block_px
     sgm = cv2.StereoSGBM_create(
         minDisparity=0,
-        numDisparities=scaled_disparities,
+        numDisparities=n_disparities,
         blockSize=block,
         # OpenCV's documented smoothness penalties for one channel: 8 and 32 x the block area
         P1=8 * block * block,
@@ -104,37 +174,49 @@ def sgm_correspondences(
     )
     # The matcher leaves the left image's first numDisparities columns unmatched (their partners would
     # lie left of the right image); padding both images by as many columns keeps the whole image.
-    pad = ((0, 0), (scaled_disparities, 0))
-    disparity = sgm.compute(np.pad(left, pad), np.pad(right, pad))[:, scaled_disparities:]
-    disparity = disparity.astype(np.float32) / 16.0  # fixed point, 4 fractional bits
+    pad = ((0, 0), (n_disparities, 0))
+    disparity = sgm.compute(np.pad(pair.left, pad), np.pad(pair.right, pad))[:, n_disparities:]
+    return disparity.astype(np.float32) / 16.0  # fixed point, 4 fractional bits
 
+
+def _textured_grid(
+    pair: _RectifiedPair, disparity: np.ndarray, config: SfmConfig
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The grid of left pixels every ``sgm_step_px``: rows, columns, disparities, and which are valid
+    (a disparity, texture in both images, inside both images).
+    """
+    block = config.sgm_block_px
     step = config.sgm_step_px
     rows, cols = np.mgrid[0 : disparity.shape[0] : step, 0 : disparity.shape[1] : step]
     d = disparity[rows, cols]
     valid = d > 0.0  # invalid pixels are marked below minDisparity
     # Semi-global matching fills flat regions (sky, a black frame) from their borders; a point needs
     # texture in both images, as a corner does.
-    texture_left = _local_std(left, block)
-    texture_right = _local_std(right, block)
-    right_cols = np.clip(np.rint(cols - d).astype(np.int64), 0, right.shape[1] - 1)
+    texture_left = _local_std(pair.left, block)
+    texture_right = _local_std(pair.right, block)
+    right_cols = np.clip(np.rint(cols - d).astype(np.int64), 0, pair.right.shape[1] - 1)
     valid &= texture_left[rows, cols] >= config.sgm_min_texture_grey
     valid &= texture_right[rows, right_cols] >= config.sgm_min_texture_grey
-    valid &= inside_left[rows, cols] & inside_right[rows, right_cols]
-    stats["keypoints"] = int(d.size)
-    stats["tracked"] = int(np.count_nonzero(valid))
+    valid &= pair.inside_left[rows, cols] & pair.inside_right[rows, right_cols]
+    return rows, cols, d, valid
+
+
+def _original_pixels(
+    pair: _RectifiedPair, rows: np.ndarray, cols: np.ndarray, d: np.ndarray, K: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Matched grid pixels (scaled left image, row, column, disparity) as undistorted pixels of a and b."""
+    s = pair.scale
     # pixel centres of the scaled image back in the rectified full-size image
-    x_left = (cols[valid] + 0.5) / s - 0.5
-    y = (rows[valid] + 0.5) / s - 0.5
-    x_right = x_left - d[valid] / s
+    x_left = (cols + 0.5) / s - 0.5
+    y = (rows + 0.5) / s - 0.5
+    x_right = x_left - d / s
     in_left, in_right = np.c_[x_left, y], np.c_[x_right, y]
-    if vertical:
+    if pair.vertical:
         in_left, in_right = in_left[:, ::-1], in_right[:, ::-1]
-    rect_pixels_a, rect_pixels_b = (in_right, in_left) if b_is_left else (in_left, in_right)
+    rect_pixels_a, rect_pixels_b = (in_right, in_left) if pair.b_is_left else (in_left, in_right)
     return (
-        _unrectify(rect_pixels_a, K, R1, P1),
-        _unrectify(rect_pixels_b, K, R2, P2),
-        stats,
-        "",
+        _unrectify(rect_pixels_a, K, pair.R1, pair.P1),
+        _unrectify(rect_pixels_b, K, pair.R2, pair.P2),
     )
 
 

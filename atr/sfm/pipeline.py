@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -58,15 +60,8 @@ def reconstruct(
             non-rigid poses.
 
     """
-    gray_a = as_gray_u8(image_a, "image_a")
-    gray_b = as_gray_u8(image_b, "image_b")
-    check_same_size(gray_a, gray_b)
-    K = validate_intrinsics(K)
-    dist = validate_distortion(dist_coeffs)
-    T_wa = validate_pose(T_world_cam_a, "T_world_cam_a")
-    T_wb = validate_pose(T_world_cam_b, "T_world_cam_b")
-
-    baseline_m = float(np.linalg.norm(T_wb[:3, 3] - T_wa[:3, 3]))
+    pair = _PosedPair.validated(image_a, image_b, K, T_world_cam_a, T_world_cam_b, dist_coeffs)
+    baseline_m = float(np.linalg.norm(pair.T_wb[:3, 3] - pair.T_wa[:3, 3]))
     if baseline_m < config.min_baseline_m:
         # Checked before matching: a hovering pair costs nothing.
         return SfmCloud.empty(
@@ -75,29 +70,9 @@ def reconstruct(
         )
 
     start = time.perf_counter()
-    if config.matcher == "sgm":
-        pixels_a, pixels_b, stats, reason = sgm_correspondences(
-            gray_a, gray_b, K, dist, T_wa, T_wb, config
-        )
-        if reason:
-            return SfmCloud.empty(reason, dict(stats))
-        dist = None  # rectification undistorted the images: the pixels are ideal ones
-    elif config.matcher == "surf":
-        pixels_a, pixels_b, stats = surf_with_stats(
-            gray_a,
-            gray_b,
-            config,
-            epipolar=lambda kp_a, kp_b: epipolar_distances_px(kp_a, kp_b, K, dist, T_wa, T_wb),
-        )
-    else:
-        pixels_a, pixels_b, stats = gftt_klt_with_stats(
-            gray_a,
-            gray_b,
-            config,
-            predict=lambda corners: predict_on_fixation_plane(
-                corners, K, dist, T_wa, T_wb, config.ground_z_m
-            ),
-        )
+    pixels_a, pixels_b, stats, reason = _correspondences(pair, config)
+    if reason:
+        return SfmCloud.empty(reason, dict(stats))
     matched = time.perf_counter()
     all_stats: dict[str, float | int] = dict(stats)
     all_stats["time_correspondences_s"] = matched - start
@@ -106,13 +81,78 @@ def reconstruct(
     if config.matcher == "sgm" and stats["tracked"] == 0:
         return SfmCloud.empty("no pixel with a valid disparity (featureless pair?)", all_stats)
 
+    # SGM's rectification undistorted the images: its pixels are ideal ones.
+    dist = None if config.matcher == "sgm" else pair.dist
     if dist is not None:
         pixels_a, pixels_b = (
-            undistort_pixels(pixels_a, K, dist),
-            undistort_pixels(pixels_b, K, dist),
+            undistort_pixels(pixels_a, pair.K, dist),
+            undistort_pixels(pixels_b, pair.K, dist),
         )
-    cloud = triangulate_known_pose(pixels_a, pixels_b, K, T_wa, T_wb, config)
+    cloud = triangulate_known_pose(pixels_a, pixels_b, pair.K, pair.T_wa, pair.T_wb, config)
     all_stats.update(cloud.stats)
     all_stats["time_triangulation_s"] = time.perf_counter() - matched
     cloud.stats = all_stats
     return cloud
+
+
+@dataclass(frozen=True)
+class _PosedPair:
+    """A validated frame pair: grey images, the camera and its known poses (``reconstruct``'s inputs)."""
+
+    gray_a: np.ndarray
+    gray_b: np.ndarray
+    K: np.ndarray
+    dist: np.ndarray | None
+    T_wa: np.ndarray
+    T_wb: np.ndarray
+
+    @classmethod
+    def validated(
+        cls,
+        image_a: np.ndarray,
+        image_b: np.ndarray,
+        K: np.ndarray,
+        T_world_cam_a: np.ndarray,
+        T_world_cam_b: np.ndarray,
+        dist_coeffs: np.ndarray | None,
+    ) -> _PosedPair:
+        """The pair from ``reconstruct``'s arguments; InputError names the first bad one."""
+        gray_a = as_gray_u8(image_a, "image_a")
+        gray_b = as_gray_u8(image_b, "image_b")
+        check_same_size(gray_a, gray_b)
+        return cls(
+            gray_a,
+            gray_b,
+            validate_intrinsics(K),
+            validate_distortion(dist_coeffs),
+            validate_pose(T_world_cam_a, "T_world_cam_a"),
+            validate_pose(T_world_cam_b, "T_world_cam_b"),
+        )
+
+
+def _correspondences(
+    pair: _PosedPair, config: SfmConfig
+) -> tuple[np.ndarray, np.ndarray, Mapping[str, int | float], str]:
+    """The pair's correspondences by the configured matcher: pixels in a and b, counters, and why
+    there are none (empty when the matcher ran).
+    """
+    K, dist, T_wa, T_wb = pair.K, pair.dist, pair.T_wa, pair.T_wb
+    if config.matcher == "sgm":
+        return sgm_correspondences(pair.gray_a, pair.gray_b, K, dist, T_wa, T_wb, config)
+    if config.matcher == "surf":
+        pixels_a, pixels_b, stats = surf_with_stats(
+            pair.gray_a,
+            pair.gray_b,
+            config,
+            epipolar=lambda kp_a, kp_b: epipolar_distances_px(kp_a, kp_b, K, dist, T_wa, T_wb),
+        )
+    else:
+        pixels_a, pixels_b, stats = gftt_klt_with_stats(
+            pair.gray_a,
+            pair.gray_b,
+            config,
+            predict=lambda corners: predict_on_fixation_plane(
+                corners, K, dist, T_wa, T_wb, config.ground_z_m
+            ),
+        )
+    return pixels_a, pixels_b, stats, ""

@@ -370,7 +370,49 @@ def triangulate_known_pose(
         )
 
     T_ba = relative_camera_pose(T_wa, T_wb)
+    X_a, X_b, finite = _triangulate_in_a(a, b, K, T_ba)
+    in_front = finite & (X_a[:, 2] > 0.0) & (X_b[:, 2] > 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        proj_a = (X_a @ K.T)[:, :2] / X_a[:, 2:3]
+        proj_b = (X_b @ K.T)[:, :2] / X_b[:, 2:3]
+    reproj_px = np.maximum(np.linalg.norm(proj_a - a, axis=1), np.linalg.norm(proj_b - b, axis=1))
+    reproj_ok = reproj_px <= config.max_reprojection_px
+    fixation_m = fixation_depth_m(T_wa, T_wb, max_miss_m=FIXATION_MAX_MISS_VS_BASELINE * baseline_m)
+    depth = _depth_gates(X_a, K, T_ba, fixation_m, config)
+    if depth.fixation_sigma_m is not None:
+        stats["fixation_sigma_m"] = depth.fixation_sigma_m
+
+    # Each rejected point is counted once, at the first gate it fails.
+    keep = in_front & reproj_ok & depth.parallax_ok & depth.sigma_ok
+    stats["rejected_behind"] = int(np.count_nonzero(~in_front))
+    stats["rejected_reprojection"] = int(np.count_nonzero(in_front & ~reproj_ok))
+    stats["rejected_parallax"] = int(np.count_nonzero(in_front & reproj_ok & ~depth.parallax_ok))
+    stats["rejected_sigma"] = int(
+        np.count_nonzero(in_front & reproj_ok & depth.parallax_ok & ~depth.sigma_ok)
+    )
+    stats["triangulated"] = int(np.count_nonzero(keep))
+    if not np.any(keep):
+        return SfmCloud.empty("no correspondence passed the triangulation gates", stats)
+    stats["median_parallax_deg"] = float(np.rad2deg(np.median(depth.parallax_rad[keep])))
+    stats["median_range_m"] = float(np.median(depth.range_m[keep]))
+    stats["median_sigma_m"] = float(np.median(depth.sigma_m[keep]))
+    points_world = X_a[keep] @ T_wa[:3, :3].T + T_wa[:3, 3]
+    return SfmCloud(
+        points_world_m=np.ascontiguousarray(points_world, dtype=np.float64),
+        sigma_m=depth.sigma_m[keep].astype(np.float32),
+        pixels=a[keep].astype(np.float32),
+        stats=stats,
+    )
+
+
+def _triangulate_in_a(
+    a: np.ndarray, b: np.ndarray, K: np.ndarray, T_ba: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each correspondence's point in camera a's frame and in camera b's, and which are finite
+    (a non-finite point is set to the origin, so that it fails the in-front gate).
+    """
     R_ba, t_ba = T_ba[:3, :3], T_ba[:3, 3]
+    n = a.shape[0]
     K_inv = np.linalg.inv(K)
     rays_a = np.c_[a, np.ones(n)] @ K_inv.T  # normalised image coordinates, z = 1
     rays_b = np.c_[b, np.ones(n)] @ K_inv.T
@@ -378,15 +420,38 @@ def triangulate_known_pose(
     finite = np.all(np.isfinite(X_a), axis=1)
     X_a[~finite] = 0.0
     X_b = X_a @ R_ba.T + t_ba
+    return X_a, X_b, finite
 
-    in_front = finite & (X_a[:, 2] > 0.0) & (X_b[:, 2] > 0.0)
 
-    with np.errstate(divide="ignore", invalid="ignore"):
-        proj_a = (X_a @ K.T)[:, :2] / X_a[:, 2:3]
-        proj_b = (X_b @ K.T)[:, :2] / X_b[:, 2:3]
-    reproj_px = np.maximum(np.linalg.norm(proj_a - a, axis=1), np.linalg.norm(proj_b - b, axis=1))
-    reproj_ok = reproj_px <= config.max_reprojection_px
+@dataclass(frozen=True)
+class _DepthGates:
+    """Parallax and depth uncertainty of each point, and the gates on them.
 
+    Attributes:
+        parallax_rad: (N,) angle between the two rays, radians.
+        range_m: (N,) distance from camera a, metres.
+        sigma_m: (N,) 1-sigma depth uncertainty, metres.
+        parallax_ok: (N,) parallax >= min_parallax_deg.
+        sigma_ok: (N,) sigma within max_relative_sigma of the range and, when set, within
+            max_sigma_vs_fixation of the sigma at the fixation depth.
+        fixation_sigma_m: sigma of a point on camera a's axis at the fixation depth, metres (None when
+            not used).
+
+    """
+
+    parallax_rad: np.ndarray
+    range_m: np.ndarray
+    sigma_m: np.ndarray
+    parallax_ok: np.ndarray
+    sigma_ok: np.ndarray
+    fixation_sigma_m: float | None
+
+
+def _depth_gates(
+    X_a: np.ndarray, K: np.ndarray, T_ba: np.ndarray, fixation_m: float | None, config: SfmConfig
+) -> _DepthGates:
+    """The parallax and sigma gates of points in camera a's frame (``triangulate_known_pose``)."""
+    R_ba, t_ba = T_ba[:3, :3], T_ba[:3, 3]
     # Camera b's centre in camera a's frame is -R^T t.
     centre_b = -R_ba.T @ t_ba
     sigma_theta = config.pixel_sigma_px / (0.5 * (K[0, 0] + K[1, 1]))
@@ -395,36 +460,15 @@ def triangulate_known_pose(
     parallax_ok = parallax_rad >= np.deg2rad(config.min_parallax_deg)
     with np.errstate(invalid="ignore"):
         sigma_ok = sigma <= config.max_relative_sigma * range_a
-    fixation_m = fixation_depth_m(T_wa, T_wb, max_miss_m=FIXATION_MAX_MISS_VS_BASELINE * baseline_m)
+    fixation_sigma_m = None
     if config.max_sigma_vs_fixation is not None and fixation_m is not None:
         _, sigma_fixation = _parallax_and_sigma(
             np.array([[0.0, 0.0, fixation_m]]), centre_b, sigma_theta
         )
-        stats["fixation_sigma_m"] = float(sigma_fixation[0])
+        fixation_sigma_m = float(sigma_fixation[0])
         with np.errstate(invalid="ignore"):
             sigma_ok &= sigma <= config.max_sigma_vs_fixation * sigma_fixation[0]
-
-    # Each rejected point is counted once, at the first gate it fails.
-    keep = in_front & reproj_ok & parallax_ok & sigma_ok
-    stats["rejected_behind"] = int(np.count_nonzero(~in_front))
-    stats["rejected_reprojection"] = int(np.count_nonzero(in_front & ~reproj_ok))
-    stats["rejected_parallax"] = int(np.count_nonzero(in_front & reproj_ok & ~parallax_ok))
-    stats["rejected_sigma"] = int(np.count_nonzero(in_front & reproj_ok & parallax_ok & ~sigma_ok))
-    stats["triangulated"] = int(np.count_nonzero(keep))
-    if np.any(keep):
-        stats["median_parallax_deg"] = float(np.rad2deg(np.median(parallax_rad[keep])))
-        stats["median_range_m"] = float(np.median(range_a[keep]))
-        stats["median_sigma_m"] = float(np.median(sigma[keep]))
-    else:
-        return SfmCloud.empty("no correspondence passed the triangulation gates", stats)
-
-    points_world = X_a[keep] @ T_wa[:3, :3].T + T_wa[:3, 3]
-    return SfmCloud(
-        points_world_m=np.ascontiguousarray(points_world, dtype=np.float64),
-        sigma_m=sigma[keep].astype(np.float32),
-        pixels=a[keep].astype(np.float32),
-        stats=stats,
-    )
+    return _DepthGates(parallax_rad, range_a, sigma, parallax_ok, sigma_ok, fixation_sigma_m)
 
 
 def triangulate_linear(

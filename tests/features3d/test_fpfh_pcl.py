@@ -1,6 +1,7 @@
 """FPFH and PFH pair features against PCL: the oracles of pcl-descriptor-oracles.md §7-§8, PCL 1.13's own output,
 and Open3D's compute_fpfh_feature (with its known differences)."""
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ ROOT = Path(__file__).resolve().parents[2]
 SHARED = ROOT / ".." / "shared"
 BUN0 = SHARED / "data" / "pcl" / "bun0.pcd"
 DATA = ROOT / "tests" / "data" / "features3d"
+ORACLES = json.loads((Path(__file__).resolve().parent / "pcl_fpfh_oracles.json").read_text())
 
 pytestmark = pytest.mark.skipif(
     not BUN0.exists(), reason="shared PCL test data (shared/data/pcl) is absent"
@@ -51,35 +53,7 @@ def test_pair_features_symmetric(bun0):
 def test_pfh_signature_all_points_k3(bun0):
     pts, nrm = bun0
     h = pfh_histogram(pts, nrm, np.arange(len(pts)), subdivisions=3)
-    expected = [
-        0.932506,
-        2.32429,
-        0.357477,
-        0.848541,
-        3.65565,
-        0.178104,
-        1.45284,
-        3.60666,
-        0.298959,
-        0.295143,
-        2.13474,
-        0.41218,
-        0.165382,
-        8.97407,
-        0.306592,
-        0.455432,
-        4.5977,
-        0.393097,
-        7.54668,
-        6.78336,
-        1.63858,
-        9.93842,
-        18.4947,
-        1.96553,
-        8.04793,
-        11.2793,
-        2.91714,
-    ]
+    expected = ORACLES["pfh_all_points_k3"]
     tol = np.full(27, 1e-2)
     tol[[4, 22]] = 2e-2
     tol[23:27] = 1e-4
@@ -90,41 +64,7 @@ def test_pfh_signature_all_points_k3(bun0):
 def test_spfh_of_point0_all_neighbours(bun0):
     pts, nrm = bun0
     row = spfh(pts, nrm, np.array([0]), radius=1.0)[0]  # 1 m covers the whole bunny: k = 397
-    expected = [
-        0.757576,
-        0.757576,
-        4.54545,
-        19.697,
-        40.6566,
-        21.4647,
-        7.575759,
-        0,
-        0,
-        0.50505,
-        4.0404,
-        0.757576,
-        1.51515,
-        6.31313,
-        9.59596,
-        20.7071,
-        18.9394,
-        15.9091,
-        12.8788,
-        6.56566,
-        4.29293,
-        2.52525,
-        0,
-        5.05051,
-        4.54545,
-        5.05051,
-        1.76768,
-        3.0303,
-        9.09091,
-        31.8182,
-        22.2222,
-        11.8687,
-        5.55556,
-    ]
+    expected = ORACLES["spfh_point0_all_neighbours"]
     np.testing.assert_allclose(row, expected, atol=1e-4)
 
 
@@ -135,82 +75,14 @@ def test_spfh_weighting_with_fake_distances(bun0):
     acc = (rows[1:] * w[:, None]).sum(axis=0)
     for f in range(3):
         acc[f * 11 : (f + 1) * 11] *= 100.0 / acc[f * 11 : (f + 1) * 11].sum()
-    expected = [
-        1.9798,
-        2.86927,
-        8.47911,
-        22.8784,
-        29.8597,
-        19.6877,
-        7.38611,
-        1.44265,
-        0.69677,
-        1.72609,
-        2.99435,
-        2.26313,
-        5.16573,
-        8.3263,
-        9.92427,
-        16.8062,
-        16.2767,
-        12.251,
-        10.354,
-        6.65578,
-        6.1437,
-        5.83341,
-        1.08809,
-        3.34133,
-        5.59236,
-        5.6355,
-        3.03257,
-        1.37437,
-        7.99746,
-        18.0343,
-        23.691,
-        19.8475,
-        10.3655,
-    ]
+    expected = ORACLES["spfh_weighted_by_index"]
     np.testing.assert_allclose(acc, expected, atol=1e-2)
 
 
 def test_fpfh_all_neighbours_point0(bun0):
     pts, nrm = bun0
     f = fpfh(pts, nrm, np.array([0]), radius=1.0)[0]
-    expected = [
-        1.58591,
-        1.68365,
-        6.71,
-        23.0717,
-        33.3844,
-        20.4002,
-        7.31067,
-        1.02635,
-        0.48591,
-        1.47069,
-        2.87061,
-        1.78321,
-        4.30795,
-        7.05514,
-        9.37615,
-        17.963,
-        18.2801,
-        14.2766,
-        10.8542,
-        6.07925,
-        5.28565,
-        4.73887,
-        0.56984,
-        3.29826,
-        5.28156,
-        5.26939,
-        3.13191,
-        1.74453,
-        9.41971,
-        21.5894,
-        24.6302,
-        17.7764,
-        7.28878,
-    ]
+    expected = ORACLES["fpfh_point0_all_neighbours"]
     np.testing.assert_allclose(f, expected, atol=1e-2)
     for part in range(3):
         assert abs(f[part * 11 : (part + 1) * 11].sum() - 100) < 1e-3

@@ -4,6 +4,9 @@ A name whose module is not in this checkout is skipped. The cloud is a sampled c
 with no symmetry, so that local frames are well defined.
 """
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -16,23 +19,11 @@ from atr.features3d import (
     is_available,
 )
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _surfaces import bumpy_sphere  # noqa: E402
+
 RADIUS = 0.35  # about 6x the sampling resolution of the surface below
 N_KEYPOINTS = 60
-
-
-def _surface(n: int, seed: int) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    u = rng.normal(size=(n, 3))
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    theta = np.arccos(u[:, 2])
-    phi = np.arctan2(u[:, 1], u[:, 0])
-    r = (
-        1.0
-        + 0.18 * np.sin(3 * theta) * np.cos(2 * phi)
-        + 0.1 * np.cos(5 * theta + phi)
-        + 0.06 * np.sin(7 * phi)
-    )
-    return u * r[:, None]
 
 
 def _rigid(seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -55,7 +46,7 @@ def _need(name: str) -> None:
 
 @pytest.fixture(scope="module")
 def scene():
-    pts = _surface(5000, seed=1)
+    pts = bumpy_sphere(5000, seed=1)
     normals = estimate_normals(pts, k=12)  # viewpoint at the centre: all normals point inward
     keypoints = np.random.default_rng(2).choice(len(pts), N_KEYPOINTS, replace=False)
     return pts, normals, keypoints

@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from atr.errors import ConfigError, InputError
 from atr.features3d._rops import rops
@@ -19,16 +20,7 @@ pytestmark = pytest.mark.skipif(
 
 
 def random_rigid(rng):
-    q = rng.normal(size=4)
-    q /= np.linalg.norm(q)
-    w, x, y, z = q
-    rot = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    rot = Rotation.from_quat(rng.normal(size=4), scalar_first=True).as_matrix()
     return rot, rng.normal(size=3) * 0.1
 
 

@@ -3,30 +3,35 @@
 import numpy as np
 import pytest
 
+from atr.errors import ConfigError
 from atr.features3d import DESCRIPTOR_LENGTHS, describe, shot_lrf
 from atr.features3d._3dsc import _mt19937_uniforms, azimuth_rotations
 
 ALL = np.arange(397)
 
 
+def _pcl_radii(oracle: dict) -> dict[str, float]:
+    """The minimal and point-density radii of PCL's test, as describe() keywords."""
+    return {k: oracle[k] for k in ("minimal_radius", "point_density_radius")}
+
+
+def _assert_bins(desc, expected, skip=(), **tolerance):
+    """Every (point, bin) value PCL's test expects, within ``tolerance`` (pytest.approx keywords)."""
+    for point, bins in expected.items():
+        for b, v in bins.items():
+            if (point, b) not in skip:
+                assert desc[int(point), int(b)] == pytest.approx(v, **tolerance), (
+                    f"point {point} bin {b}"
+                )
+
+
 def test_usc_matches_pcl(bun0, oracles):
     o = oracles["usc"]
     desc = describe(
-        "usc",
-        bun0,
-        None,
-        ALL,
-        o["radius"],
-        minimal_radius=o["minimal_radius"],
-        point_density_radius=o["point_density_radius"],
-        lrf_radius=o["lrf_radius"],
+        "usc", bun0, None, ALL, o["radius"], lrf_radius=o["lrf_radius"], **_pcl_radii(o)
     )
     assert desc.shape == (397, DESCRIPTOR_LENGTHS["usc"]) == (397, 1960)
-    for point, bins in o["expected"].items():
-        for b, v in bins.items():
-            assert desc[int(point), int(b)] == pytest.approx(v, abs=o["tol"]), (
-                f"point {point} bin {b}"
-            )
+    _assert_bins(desc, o["expected"], abs=o["tol"])
     np.testing.assert_allclose(
         shot_lrf(bun0, np.array([160]), o["lrf_radius"])[0], o["rf_160"], atol=1e-4
     )
@@ -42,22 +47,9 @@ def test_usc_paper_layout_has_1980_bins(bun0):
 def test_3dsc_released_pcl_matches(bun0, bun0_normals, oracles):
     # PCL asserts float equality in its float32 arithmetic; ours is float64 then rounded: relative 1e-6.
     o = oracles["sc3d_released"]
-    desc = describe(
-        "3dsc",
-        bun0,
-        bun0_normals,
-        ALL,
-        o["radius"],
-        minimal_radius=o["minimal_radius"],
-        point_density_radius=o["point_density_radius"],
-        seed=o["seed"],
-    )
+    desc = describe("3dsc", bun0, bun0_normals, ALL, o["radius"], seed=o["seed"], **_pcl_radii(o))
     assert desc.shape == (397, 1980)
-    for point, bins in o["expected"].items():
-        for b, v in bins.items():
-            assert desc[int(point), int(b)] == pytest.approx(v, rel=1e-6, abs=1e-6), (
-                f"point {point} bin {b}"
-            )
+    _assert_bins(desc, o["expected"], rel=1e-6, abs=1e-6)
 
 
 def test_3dsc_master_pcl_matches(bun0, bun0_normals, oracles):
@@ -72,16 +64,21 @@ def test_3dsc_master_pcl_matches(bun0, bun0_normals, oracles):
         point_density_radius=0.008,
         x_axis="farthest",
     )
-    for point, bins in o["expected"].items():
-        for b, v in bins.items():
-            if (point, b) == ("108", "89"):
-                # The farthest neighbour sits at azimuth 0 exactly here; PCL's rounding put it at 360⁻ (last bin).
-                # The oracle notes give its weight: 31.6039 on top of PCL's value.
-                assert desc[108, 89] == pytest.approx(v + 31.6039, abs=1e-3)
-                continue
-            assert desc[int(point), int(b)] == pytest.approx(v, abs=o["tol"]), (
-                f"point {point} bin {b}"
-            )
+    # The farthest neighbour of point 108 sits at azimuth 0 exactly; PCL's rounding put it at 360⁻ (last
+    # bin). The oracle notes give its weight: 31.6039 on top of PCL's value.
+    assert desc[108, 89] == pytest.approx(o["expected"]["108"]["89"] + 31.6039, abs=1e-3)
+    _assert_bins(desc, o["expected"], skip={("108", "89")}, abs=o["tol"])
+
+
+def test_unknown_or_bad_parameters_are_refused_by_name(bun0, bun0_normals):
+    with pytest.raises(ConfigError, match="seed"):  # 3DSC's, not USC's
+        describe("usc", bun0, None, ALL[:3], 0.04, seed=1)
+    with pytest.raises(ConfigError, match="lrf_radius"):
+        describe("3dsc", bun0, bun0_normals, ALL[:3], 0.04, lrf_radius=0.04)
+    with pytest.raises(ConfigError, match="x_axis"):
+        describe("3dsc", bun0, bun0_normals, ALL[:3], 0.04, x_axis="north")
+    with pytest.raises(ConfigError, match="minimal_radius"):
+        describe("usc", bun0, None, ALL[:3], 0.04, minimal_radius=0.05)
 
 
 def test_mt19937_matches_the_cxx_standard():

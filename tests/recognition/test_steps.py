@@ -1,26 +1,26 @@
 """Unit tests of the matcher's steps: each pins a property that fails if the step breaks."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
 
 from atr.errors import ConfigError, InputError
 from atr.recognition import (
     Correspondences,
-    HoughSettings,
     Hypothesis,
     PointSet,
+    RansacSettings,
     RecognitionConfig,
     Template,
     VerifySettings,
-    YawWindow,
     descriptor_sq_distances,
     drop_repeated_hypotheses,
     filter_smooth_surfaces,
     group_geometrically_consistent,
-    group_upright_hough,
     height_above_ground,
     knndr_from_distances,
     lowest_per_cell,
@@ -35,12 +35,6 @@ from atr.recognition import (
 from atr.recognition._backend import estimate_normals
 
 
-def _hough(scene, heights, model, corr, yaw_centre_rad=None, yaw_half_width_rad=np.pi, **kw):
-    """``group_upright_hough`` with its settings and heading window given as keywords."""
-    window = None if yaw_centre_rad is None else YawWindow(yaw_centre_rad, yaw_half_width_rad)
-    return group_upright_hough(scene, heights, model, corr, HoughSettings(**kw), window)
-
-
 def _verify(model, scene, T, gate_m, overlap_m, iterations, scene_sigma_m=None, **kw):
     """``verify_with_icp`` with its settings given as arguments."""
     settings = VerifySettings(gate_m, overlap_m, iterations, **kw)
@@ -48,18 +42,8 @@ def _verify(model, scene, T, gate_m, overlap_m, iterations, scene_sigma_m=None, 
 
 
 def _random_pose(rng):
-    q = rng.normal(size=4)
-    q /= np.linalg.norm(q)
-    w, x, y, z = q
-    R = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
     T = np.eye(4)
-    T[:3, :3] = R
+    T[:3, :3] = Rotation.from_quat(rng.normal(size=4), scalar_first=True).as_matrix()
     T[:3, 3] = rng.uniform(-5, 5, 3)
     return T
 
@@ -157,8 +141,9 @@ def test_geometric_consistency_groups_the_true_correspondences():
 def test_ransac_recovers_pose_and_is_deterministic():
     model, scene, T, corr, _ = _rigid_case(4)
     group = np.arange(len(corr))
-    h1 = ransac_per_group(scene, model, corr, group, 1000, 0.05, np.random.default_rng(9))
-    h2 = ransac_per_group(scene, model, corr, group, 1000, 0.05, np.random.default_rng(9))
+    settings = RansacSettings(1000, 0.05)
+    h1 = ransac_per_group(scene, model, corr, group, settings, np.random.default_rng(9))
+    h2 = ransac_per_group(scene, model, corr, group, settings, np.random.default_rng(9))
     assert h1 is not None and h2 is not None
     np.testing.assert_allclose(h1.T_scene_model, T, atol=1e-9)
     assert np.array_equal(h1.T_scene_model, h2.T_scene_model)
@@ -212,10 +197,11 @@ def test_upright_ransac_keeps_a_side_view_standing():
         distance=np.zeros(n_true + n_out),
     )
     group = np.arange(n_true + n_out)
+    settings = RansacSettings(1000, 0.1)
     up = ransac_per_group(
-        scene, model, corr, group, 1000, 0.1, np.random.default_rng(2), upright=True
+        scene, model, corr, group, replace(settings, upright=True), np.random.default_rng(2)
     )
-    rigid = ransac_per_group(scene, model, corr, group, 1000, 0.1, np.random.default_rng(2))
+    rigid = ransac_per_group(scene, model, corr, group, settings, np.random.default_rng(2))
     assert up is not None and rigid is not None
     assert np.array_equal(up.T_scene_model[2, :3], [0.0, 0.0, 1.0])  # standing, exactly
     yaw = math.degrees(math.atan2(up.T_scene_model[1, 0], up.T_scene_model[0, 0]))
@@ -259,18 +245,24 @@ def test_config_validates():
     assert math.isclose(cfg.support_radius_m, cfg.k_support_radius * 0.3)
 
 
-def test_template_round_trips_through_dict_and_msgpack():
-    msgpack = pytest.importorskip("msgpack")
-    rng = np.random.default_rng(6)
-    t = Template(
+def _random_template(rng, radius_m, params):
+    """An FPFH template of 30 random points and 20 random keypoints."""
+    return Template(
         target="t72",
         descriptor="fpfh",
         points_m=rng.normal(size=(30, 3)).astype(np.float32),
         normals=rng.normal(size=(30, 3)).astype(np.float32),
         keypoints_m=rng.normal(size=(20, 3)).astype(np.float32),
         descriptors=rng.normal(size=(20, 33)).astype(np.float32),
-        radius_m=1.5,
-        params={"resolution_m": 0.3, "template_azimuths_deg": [0.0, 90.0]},
+        radius_m=radius_m,
+        params=params,
+    )
+
+
+def test_template_round_trips_through_dict_and_msgpack():
+    msgpack = pytest.importorskip("msgpack")
+    t = _random_template(
+        np.random.default_rng(6), 1.5, {"resolution_m": 0.3, "template_azimuths_deg": [0.0, 90.0]}
     )
 
     def enc(o):
@@ -370,7 +362,7 @@ def test_knndr_from_distances_equals_match_knndr():
     np.testing.assert_allclose(a.distance, d, rtol=1e-4)
 
 
-def test_upright_hough_groups_true_correspondences_and_uses_heights():
+def test_upright_hough_groups_true_correspondences_and_uses_heights(hough):
     rng = np.random.default_rng(13)
     model = np.c_[rng.uniform(-3.5, 3.5, (200, 2)), rng.uniform(0.3, 2.2, 200)]
     yaw = 1.1
@@ -385,48 +377,29 @@ def test_upright_hough_groups_true_correspondences_and_uses_heights():
         model=np.r_[np.arange(n_true), rng.integers(0, 200, n_out)].astype(np.int64),
         distance=np.zeros(n_true + n_out),
     )
-    groups = _hough(
-        scene,
-        heights,
-        model,
-        corr,
-        cell_m=0.9,
-        yaw_bin_rad=math.radians(10),
-        height_tol_m=0.45,
-        min_size=5,
-        max_groups=5,
-    )
+    settings = {
+        "cell_m": 0.9,
+        "yaw_bin_rad": math.radians(10),
+        "height_tol_m": 0.45,
+        "min_size": 5,
+        "max_groups": 5,
+    }
+    groups = hough(scene, heights, model, corr, **settings)
     assert groups
     assert set(range(n_true)) <= set(groups[0].tolist())
     assert (
         len(groups[0]) < 3 * n_true
     )  # 600 random outliers: the peak is mostly true correspondences
     # the same correspondences with the scene lifted 1 m off the ground are height-inconsistent
-    none = _hough(
-        scene,
-        heights + 1.0,
-        model,
-        corr,
-        cell_m=0.9,
-        yaw_bin_rad=math.radians(10),
-        height_tol_m=0.45,
-        min_size=5,
-        max_groups=5,
-    )
+    none = hough(scene, heights + 1.0, model, corr, **settings)
     assert all(len(set(range(n_true)) & set(g.tolist())) < 5 for g in none)
 
 
 def test_multi_view_template_slices_and_validation():
-    rng = np.random.default_rng(14)
-    t = Template(
-        target="t72",
-        descriptor="fpfh",
-        points_m=rng.normal(size=(30, 3)).astype(np.float32),
-        normals=rng.normal(size=(30, 3)).astype(np.float32),
-        keypoints_m=rng.normal(size=(20, 3)).astype(np.float32),
-        descriptors=rng.normal(size=(20, 33)).astype(np.float32),
-        radius_m=3.0,
-        params={"resolution_m": 0.3, "view_points": [10, 20], "view_keypoints": [5, 15]},
+    t = _random_template(
+        np.random.default_rng(14),
+        3.0,
+        {"resolution_m": 0.3, "view_points": [10, 20], "view_keypoints": [5, 15]},
     )
     back = Template.from_dict(t.to_dict())
     assert back.view_slices() == [(slice(0, 10), slice(0, 5)), (slice(10, 30), slice(5, 20))]

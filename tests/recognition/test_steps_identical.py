@@ -13,12 +13,10 @@ import pytest
 from atr.errors import InputError
 from atr.recognition import (
     Correspondences,
-    HoughSettings,
+    RansacSettings,
     RecognitionConfig,
-    YawWindow,
     _kernels,
     descriptor_sq_distances,
-    group_upright_hough,
     height_above_ground,
     knndr_from_distances,
     lowest_per_cell,
@@ -26,13 +24,6 @@ from atr.recognition import (
     rigid_transform,
 )
 from atr.recognition.matcher import _match_views
-
-
-def _hough(scene, heights, model, corr, yaw_centre_rad=None, yaw_half_width_rad=np.pi, **kw):
-    """``group_upright_hough`` with its settings and heading window given as keywords."""
-    window = None if yaw_centre_rad is None else YawWindow(yaw_centre_rad, yaw_half_width_rad)
-    return group_upright_hough(scene, heights, model, corr, HoughSettings(**kw), window)
-
 
 # ------------------------------------------------------------------------------ references
 
@@ -176,6 +167,20 @@ def _reference_ransac_counts(R, t, m, s, inlier2):
     return counts
 
 
+def reference_kabsch(m, s, idx):
+    """Kabsch on each sample of 3: centroids (K, 1, 3), cross-covariances, their SVD, R and t."""
+    ms, ss = m[idx], s[idx]
+    mc, sc = ms.mean(1, keepdims=True), ss.mean(1, keepdims=True)
+    H = np.einsum("ikj,ikl->ijl", ms - mc, ss - sc)
+    U, _, Vt = np.linalg.svd(H)
+    det = np.linalg.det(np.einsum("ikj,ilk->ijl", Vt, U))
+    Vt_fix = Vt.copy()
+    Vt_fix[:, 2, :] *= np.where(det < 0, -1.0, 1.0)[:, None]
+    R = np.einsum("ikj,ilk->ijl", Vt_fix, U)
+    t = sc[:, 0, :] - np.einsum("ijk,ik->ij", R, mc[:, 0, :])
+    return mc, sc, H, U, Vt, R, t
+
+
 def reference_ransac(scene_keypoints, model_keypoints, corr, group, iterations, inlier_m, rng):
     s = np.asarray(scene_keypoints[corr.scene[group]], np.float64)
     m = np.asarray(model_keypoints[corr.model[group]], np.float64)
@@ -187,15 +192,7 @@ def reference_ransac(scene_keypoints, model_keypoints, corr, group, iterations, 
     idx = idx[ok]
     if len(idx) == 0:
         return None
-    ms, ss = m[idx], s[idx]
-    mc, sc = ms.mean(1, keepdims=True), ss.mean(1, keepdims=True)
-    H = np.einsum("ikj,ikl->ijl", ms - mc, ss - sc)
-    U, _, Vt = np.linalg.svd(H)
-    det = np.linalg.det(np.einsum("ikj,ilk->ijl", Vt, U))
-    Vt_fix = Vt.copy()
-    Vt_fix[:, 2, :] *= np.where(det < 0, -1.0, 1.0)[:, None]
-    R = np.einsum("ikj,ilk->ijl", Vt_fix, U)
-    t = sc[:, 0, :] - np.einsum("ijk,ik->ij", R, mc[:, 0, :])
+    *_, R, t = reference_kabsch(m, s, idx)
     counts = _reference_ransac_counts(
         np.ascontiguousarray(R), np.ascontiguousarray(t), m, s, float(inlier_m) ** 2
     )
@@ -374,7 +371,7 @@ def _hough_case(rng, n_corr, spread_m):
     return scene, heights, model, corr
 
 
-def test_upright_hough_matches_the_numpy_reference():
+def test_upright_hough_matches_the_numpy_reference(hough):
     rng = np.random.default_rng(7)
     n_checked = 0
     for trial in range(120):
@@ -392,7 +389,7 @@ def test_upright_hough_matches_the_numpy_reference():
             to_cam = rng.uniform(-np.pi, np.pi, len(corr))
             kw["yaw_centre_rad"] = to_cam - np.radians(rng.choice([0.0, 15.0, 90.0]))
             kw["yaw_half_width_rad"] = float(rng.choice([0.3, np.pi / 12 + 0.1, np.pi]))
-        got = _hough(scene, heights, model, corr, **kw)
+        got = hough(scene, heights, model, corr, **kw)
         want = reference_hough(scene, heights, model, corr, **kw)
         assert len(got) == len(want)
         assert all(_same_array(g, w) for g, w in zip(got, want, strict=True))
@@ -400,7 +397,7 @@ def test_upright_hough_matches_the_numpy_reference():
     assert n_checked > 100  # the cases do form groups
 
 
-def test_upright_hough_heading_window_edges_match_the_numpy_reference():
+def test_upright_hough_heading_window_edges_match_the_numpy_reference(hough):
     """Headings exactly at, just inside and just outside the window edge; huge and NaN headings."""
     rng = np.random.default_rng(8)
     n_bins = 36
@@ -416,7 +413,7 @@ def test_upright_hough_heading_window_edges_match_the_numpy_reference():
     yaw[::50] = 1e7
     yaw[1::50] = np.nan
     kw = {"cell_m": 0.9, "yaw_bin_rad": bin_rad, "height_tol_m": 0.45, "min_size": 3}
-    got = _hough(scene, heights, model, corr, yaw_centre_rad=yaw, yaw_half_width_rad=half, **kw)
+    got = hough(scene, heights, model, corr, yaw_centre_rad=yaw, yaw_half_width_rad=half, **kw)
     want = reference_hough(
         scene, heights, model, corr, yaw_centre_rad=yaw, yaw_half_width_rad=half, **kw
     )
@@ -455,7 +452,8 @@ def test_ransac_matches_the_numpy_reference_and_draws_the_same_samples():
     n_found = 0
     for scene, model, corr, group, iterations, inlier_m, seed in _ransac_cases(rng):
         g_new, g_ref = np.random.default_rng(seed), np.random.default_rng(seed)
-        got = ransac_per_group(scene, model, corr, group, iterations, inlier_m, g_new)
+        settings = RansacSettings(iterations, inlier_m)
+        got = ransac_per_group(scene, model, corr, group, settings, g_new)
         want = reference_ransac(scene, model, corr, group, iterations, inlier_m, g_ref)
         assert g_new.bit_generator.state == g_ref.bit_generator.state
         if want is None:
@@ -486,16 +484,7 @@ def test_kabsch_kernels_reproduce_numpys_intermediates_including_signed_zeros():
     """Centroids, cross-covariances, rotations and translations equal numpy's bit for bit."""
     rng = np.random.default_rng(10)
     for m, s, idx in _sample_cases(rng):
-        ms, ss = m[idx], s[idx]
-        mc, sc = ms.mean(1, keepdims=True), ss.mean(1, keepdims=True)
-        H = np.einsum("ikj,ikl->ijl", ms - mc, ss - sc)
-        U, _, Vt = np.linalg.svd(H)
-        det = np.linalg.det(np.einsum("ikj,ilk->ijl", Vt, U))
-        Vt_fix = Vt.copy()
-        Vt_fix[:, 2, :] *= np.where(det < 0, -1.0, 1.0)[:, None]
-        R = np.einsum("ikj,ilk->ijl", Vt_fix, U)
-        t = sc[:, 0, :] - np.einsum("ijk,ik->ij", R, mc[:, 0, :])
-
+        mc, sc, H, U, Vt, R, t = reference_kabsch(m, s, idx)
         mc2, sc2, H2 = _kernels.sample_cross_covariances(m, s, idx)
         R2, t2 = _kernels.kabsch_poses(U, Vt, mc2, sc2)
         for got, want in ((mc2, mc[:, 0]), (sc2, sc[:, 0]), (H2, H), (R2, R), (t2, t)):

@@ -35,6 +35,15 @@ def pose(R_world_cam: np.ndarray, centre_world: np.ndarray) -> np.ndarray:
     return T
 
 
+def oblique_pair(
+    tilt_a_rad: float, tilt_b_rad: float, yaw_b_rad: float, centre_b: list[float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Camera a 50 m above the origin, tilted from nadir; camera b at centre_b, tilted and turned."""
+    T_a = pose(R_WORLD_NADIR @ rot_x(tilt_a_rad), np.array([0.0, 0.0, 50.0]))
+    T_b = pose(rot_z(yaw_b_rad) @ R_WORLD_NADIR @ rot_x(tilt_b_rad), np.array(centre_b))
+    return T_a, T_b
+
+
 def noise_texture(shape: tuple[int, int], seed: int) -> np.ndarray:
     """Multi-scale blurred noise, uint8: corners and blobs at many scales, no periodicity."""
     rng = np.random.default_rng(seed)
@@ -81,5 +90,7 @@ def plane_scene() -> PlaneScene:
 
 @pytest.fixture(scope="session")
 def geo() -> SimpleNamespace:
-    """Pose helpers: R_WORLD_NADIR, pose(R, centre), rot_x(rad), rot_z(rad)."""
-    return SimpleNamespace(R_WORLD_NADIR=R_WORLD_NADIR, pose=pose, rot_x=rot_x, rot_z=rot_z)
+    """Pose helpers: R_WORLD_NADIR, pose(R, centre), rot_x(rad), rot_z(rad), oblique_pair(...)."""
+    return SimpleNamespace(
+        R_WORLD_NADIR=R_WORLD_NADIR, pose=pose, rot_x=rot_x, rot_z=rot_z, oblique_pair=oblique_pair
+    )

@@ -15,11 +15,7 @@ from atr.sfm import SfmConfig, gftt_klt_correspondences, reconstruct, surf_corre
 @pytest.fixture
 def pair(geo) -> tuple[np.ndarray, np.ndarray]:
     """Two oblique views 50 m above the plane, 4 m apart, slightly rotated."""
-    T_a = geo.pose(geo.R_WORLD_NADIR @ geo.rot_x(0.25), np.array([0.0, 0.0, 50.0]))
-    T_b = geo.pose(
-        geo.rot_z(0.03) @ geo.R_WORLD_NADIR @ geo.rot_x(0.22), np.array([4.0, 0.5, 50.3])
-    )
-    return T_a, T_b
+    return geo.oblique_pair(0.25, 0.22, 0.03, [4.0, 0.5, 50.3])
 
 
 def true_pixel_in_b(scene, pixels_a, T_a, T_b) -> np.ndarray:

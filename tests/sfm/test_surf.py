@@ -10,7 +10,7 @@ import pytest
 from atr.errors import InputError
 from atr.sfm import SfmConfig, Surf, match_nndr
 from atr.sfm.correspondences import match_nndr_both_ways
-from atr.sfm.repeatability import matching_score, repeatability
+from atr.sfm.repeatability import HomographyPair, matching_score, repeatability
 from atr.sfm.surf import surf_filter_sizes
 
 
@@ -59,9 +59,9 @@ def test_rotation_by_90_degrees_keeps_keypoints_and_descriptors(plane_scene) -> 
     surf = Surf(SfmConfig(surf_blob_threshold=1e-3))
     ka, da = surf.detect_and_compute(img.astype(np.float32) / 255.0)
     kb, db = surf.detect_and_compute(rotated.astype(np.float32) / 255.0)
-    assert repeatability(ka[:, :2], kb[:, :2], H, (400, 400), (400, 400), 1.5) > 0.8
-    ia, ib = match_nndr(da, db, 0.6)
-    score, precision = matching_score(ka[:, :2], kb[:, :2], ia, ib, H, (400, 400), (400, 400), 1.5)
+    pair = HomographyPair(H, (400, 400), (400, 400))
+    assert repeatability(ka[:, :2], kb[:, :2], pair, 1.5) > 0.8
+    score, precision = matching_score(ka[:, :2], kb[:, :2], match_nndr(da, db, 0.6), pair, 1.5)
     assert precision > 0.95 and score > 0.3
 
 
@@ -77,8 +77,9 @@ def test_repeatability_under_rotation_is_comparable_to_sift(plane_scene) -> None
     sift = cv2.SIFT_create()
     sa = np.float32([k.pt for k in sift.detect(img, None)])
     sb = np.float32([k.pt for k in sift.detect(warped, None)])
-    ours = repeatability(ka, kb, H, (w, h), (w, h), 2.5)
-    theirs = repeatability(sa, sb, H, (w, h), (w, h), 2.5)
+    pair = HomographyPair(H, (w, h), (w, h))
+    ours = repeatability(ka, kb, pair, 2.5)
+    theirs = repeatability(sa, sb, pair, 2.5)
     assert ours > 0.5 and ours > 0.6 * theirs, (ours, theirs)
 
 

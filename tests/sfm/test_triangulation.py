@@ -34,11 +34,7 @@ def project(points_world: np.ndarray, T_world_cam: np.ndarray) -> np.ndarray:
 @pytest.fixture
 def cams(geo) -> tuple[np.ndarray, np.ndarray]:
     """Two oblique cameras ~50 m above the ground, 6 m apart, slightly rotated."""
-    T_a = geo.pose(geo.R_WORLD_NADIR @ geo.rot_x(0.2), np.array([0.0, 0.0, 50.0]))
-    T_b = geo.pose(
-        geo.rot_z(0.05) @ geo.R_WORLD_NADIR @ geo.rot_x(0.18), np.array([6.0, 1.0, 50.5])
-    )
-    return T_a, T_b
+    return geo.oblique_pair(0.2, 0.18, 0.05, [6.0, 1.0, 50.5])
 
 
 def ground_points(n: int, seed: int) -> np.ndarray:
