@@ -4,8 +4,12 @@ Scenario 1 at 30 degrees obliquity (50 m range), about 20 scenes: sensor_source 
 atr_matcher, with template_store answering and the recorder on. It prints, per scene, what was recognised
 where against the simulator's truth, then the flight's F1 (§III-C) and the recording's path.
 
+The target is the T-72 unless --target names another vehicle of the family or --target-mesh gives a mesh file
+(its template is built for the flight); --clutter and --clutter-mesh add confusers (docs/sim.md, "Vehicles").
+
 Examples:
     atr demo
+    atr demo --target leopard2 --clutter t72 --clutter m109
     atr demo --frames 10 --set recognition.descriptor=fpfh
     atr demo --scenario 2 --run 1 --set sfm.matcher=surf
     atr demo --scenario 3 --set sfm.matcher=sgm --set sfm.pair_gap_frames=2
@@ -17,6 +21,8 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+
+from cli.world import add_vehicle_arguments
 
 DEMO_OBLIQUITY_DEG = 30.0
 """Without --run the demo flies the scenario's run at this obliquity (the paper's medium, Table II)."""
@@ -41,20 +47,59 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--frames", type=int, default=21, help="frames to fly (scenes = frames - pair gap)"
     )
     parser.add_argument("--seed", type=int, default=0)
+    add_vehicle_arguments(parser, mesh_files=True)
     parser.add_argument(
         "--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE"
     )
     parser.add_argument("--out", type=Path, help="recording (default runs/demo-<time>/flight.mcap)")
 
 
+def vehicle_options(args: argparse.Namespace) -> tuple[list[str], list[str]]:
+    """The sensor source's arguments and the configuration overrides that fly the chosen target and
+    confusers (absolute file paths: the services do not run in the user's folder), and serve the target's
+    template.
+
+    Raises:
+        InputError: as `atr.io.mesh.vehicle_sources`.
+
+    """
+    import json
+
+    from atr.config import load_config
+    from atr.io.mesh import parse_source, resolve_source, vehicle_sources
+
+    target, clutter = vehicle_sources(
+        args.target, args.target_mesh, args.clutter, args.clutter_mesh
+    )
+    source_args: list[str] = []
+    for flag, source in [("--target-mesh", target)] + [("--clutter-mesh", c) for c in clutter]:
+        if source is not None:
+            source_args += [flag, resolve_source(source)]
+    overrides = list(args.overrides)
+    if target is not None:
+        pipeline = load_config(None, overrides).pipeline
+        if parse_source(target).path is None:  # a vehicle of the family: a template like the T-72's
+            if target not in pipeline.targets:
+                overrides.append(f"pipeline.targets={json.dumps([*pipeline.targets, target])}")
+        else:
+            meshes = [*pipeline.target_meshes, resolve_source(target)]
+            overrides.append(f"pipeline.target_meshes={json.dumps(meshes)}")
+    return source_args, overrides
+
+
 def run(args: argparse.Namespace) -> int:
     """Fly, print per-scene results and the F1; 0 when every process stayed up."""
+    from atr.io.mesh import mesh_name
     from bus.launcher import interrupt_on_signals
     from bus.pipeline import check_output, fly_layout
     from cli.flight_report import FlightPrinter, f1_line, summarise, summarise_tracks, track_line
 
     if args.run is None:
         args.run = demo_run(args.scenario)
+    vehicle_args, overrides = vehicle_options(args)
+    target = (
+        mesh_name(args.target or args.target_mesh) if (args.target or args.target_mesh) else "t72"
+    )
     # a relative path is the user's, not the services' folder (fly_layout checks the rest first)
     out = check_output(
         args.out or Path("runs") / time.strftime("demo-%Y%m%d-%H%M%S") / "flight.mcap"
@@ -65,11 +110,11 @@ def run(args: argparse.Namespace) -> int:
         "(the first run builds the templates and compiles the kernels: a minute or two)",
         flush=True,
     )
-    printer = FlightPrinter()
+    printer = FlightPrinter(target)
     with interrupt_on_signals():  # SIGTERM/SIGHUP stop the layout as Ctrl-C does
         result = fly_layout(
             out,
-            overrides=args.overrides,
+            overrides=overrides,
             source_args=[
                 "--scenario",
                 str(args.scenario),
@@ -79,14 +124,15 @@ def run(args: argparse.Namespace) -> int:
                 str(args.frames),
                 "--seed",
                 str(args.seed),
+                *vehicle_args,
             ],
             on_session=printer.attach,
         )
     printer.detach()
-    counts = summarise(out)
+    counts = summarise(out, target)
     if counts is not None:
         print("\n" + f1_line(counts))
-        tracks = summarise_tracks(out)
+        tracks = summarise_tracks(out, target)
         if tracks is not None:
             print(track_line(tracks))
     print(f"recording: {out}")

@@ -35,6 +35,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr eval`."""
+    from cli.world import add_vehicle_arguments
+
     parser.add_argument(
         "--scenario", type=int, action="append", help="Table II scenario (repeatable; default all)"
     )
@@ -70,11 +72,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--seed", type=int, default=0, help="world seed (0 is reported; others tune)"
     )
     parser.add_argument(
-        "--target-mesh", help="mesh file of the target (its template and its world)"
+        "--target-mesh",
+        help="mesh file of the target (its template and its world): FILE[:units=mm,up=y]",
     )
     parser.add_argument(
         "--clutter-mesh", action="append", default=[], help="extra confuser mesh (repeatable)"
     )
+    add_vehicle_arguments(parser)  # --target NAME, --clutter NAME: vehicles of the family
     parser.add_argument(
         "--json", type=Path, help="also write the results table here (the contract)"
     )
@@ -102,7 +106,14 @@ def _log(text: str) -> None:
 def plan(args: argparse.Namespace) -> Plan:
     """The evaluation plan of `atr eval`'s arguments."""
     from atr.evaluation.experiment import Request, plan
+    from atr.io.mesh import vehicle_sources
 
+    target, clutter = vehicle_sources(
+        getattr(args, "target", None),
+        args.target_mesh,
+        getattr(args, "clutter", ()),
+        args.clutter_mesh,
+    )
     return plan(
         Request(
             scenarios=tuple(args.scenario or ()),
@@ -113,8 +124,8 @@ def plan(args: argparse.Namespace) -> Plan:
             descriptors=tuple(args.descriptor or ()),
             noises=tuple(args.noise or ["none"]),
             seed=args.seed,
-            target_mesh=args.target_mesh,
-            clutter_meshes=tuple(args.clutter_mesh),
+            target_mesh=target,
+            clutter_meshes=clutter,
             overrides=tuple(args.overrides),
             results=args.results,
             via_services=bool(getattr(args, "via_services", False)),

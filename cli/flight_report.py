@@ -19,16 +19,20 @@ from bus.evaluation import scene_record
 TARGET = "t72"
 
 
-def score(truth: dict | None, detections: dict, camera_pose: dict | None = None) -> SceneScore:
+def score(
+    truth: dict | None, detections: dict, camera_pose: dict | None = None, target: str = TARGET
+) -> SceneScore:
     """Judge one scene from its Truth, Detections and (SfM) CameraPose messages, as `atr eval` does."""
     # The truth lists only the targets present in the scene (sensor_source applies the visibility rule
     # with the flight's own threshold), so every listed target counts here.
     return score_record(
-        scene_record(truth, detections, camera_pose), TARGET, present_min_visible_fraction=0.0
+        scene_record(truth, detections, camera_pose), target, present_min_visible_fraction=0.0
     )
 
 
-def scene_line(truth: dict | None, detections: dict, camera_pose: dict | None = None) -> str:
+def scene_line(
+    truth: dict | None, detections: dict, camera_pose: dict | None = None, target: str = TARGET
+) -> str:
     """One human line: frames, what was recognised where, and the verdict against truth."""
     frames = "-".join(str(f) for f in detections.get("frame_seqs", []))
     found = (
@@ -39,7 +43,7 @@ def scene_line(truth: dict | None, detections: dict, camera_pose: dict | None = 
         )
         or "nothing"
     )
-    verdict = score(truth, detections, camera_pose)
+    verdict = score(truth, detections, camera_pose, target)
     visible = max((t["visible_fraction"] for t in (truth or {}).get("targets", [])), default=0.0)
     error = (
         f", error {verdict.translation_error_m:.2f} m"
@@ -55,10 +59,11 @@ def is_scene(detections: dict[str, Any]) -> bool:
 
 
 class FlightPrinter:
-    """Prints a line per scene as detections arrive."""
+    """Prints a line per scene as detections arrive, judged for the flight's target."""
 
-    def __init__(self) -> None:
+    def __init__(self, target: str = TARGET) -> None:
         self._watch = None
+        self._target = target
 
     def attach(self, session: object) -> None:
         """Start printing from a bus session."""
@@ -67,10 +72,9 @@ class FlightPrinter:
         print("flying; one line per scene:", flush=True)
         self._watch = FlightWatch(session, "uav1", self._print)
 
-    @staticmethod
-    def _print(truth: dict | None, detections: dict, camera_pose: dict | None) -> None:
+    def _print(self, truth: dict | None, detections: dict, camera_pose: dict | None) -> None:
         if is_scene(detections):
-            print(scene_line(truth, detections, camera_pose), flush=True)
+            print(scene_line(truth, detections, camera_pose, self._target), flush=True)
 
     def detach(self) -> None:
         """Stop printing."""
@@ -78,9 +82,16 @@ class FlightPrinter:
             self._watch.close()
 
 
-def summarise(path: Path) -> Counts | None:
+def flight_target(scenes: list[tuple[dict | None, dict, dict | None]]) -> str:
+    """The target of a recorded simulated flight: the vehicle its Truth messages list (T-72 if none)."""
+    names = [t["name"] for truth, _, _ in scenes for t in (truth or {}).get("targets", [])]
+    return names[0] if names else TARGET
+
+
+def summarise(path: Path, target: str | None = None) -> Counts | None:
     """TP/FP/FN/TN of a recorded simulated flight; None when there is nothing to judge: no scene was
-    answered, or the recording carries no truth (a real flight).
+    answered, or the recording carries no truth (a real flight). The target is the one the truth
+    lists unless given.
 
     Scenes without a pair (empty first clouds) are not scenes.
     """
@@ -92,10 +103,11 @@ def summarise(path: Path) -> Counts | None:
         return None
     if all(t is None for t, _, _ in scenes):
         return None
-    return count([score(t, d, c) for t, d, c in scenes])
+    target = target or flight_target(scenes)
+    return count([score(t, d, c, target) for t, d, c in scenes])
 
 
-def summarise_tracks(path: Path) -> TrackScore | None:
+def summarise_tracks(path: Path, target: str | None = None) -> TrackScore | None:
     """The track-level figures of a recorded simulated flight (its tracker's Tracks messages), judged as
     `atr eval` judges tracks (`atr.evaluation.metrics.score_tracks`): per scene the target's confirmed and
     lost tracks, placed relative to the sensor as detections are; None without truth or without tracks.
@@ -106,14 +118,15 @@ def summarise_tracks(path: Path) -> TrackScore | None:
     scenes = [(t, d, c) for t, d, c in flight_scenes(path) if is_scene(d) and t is not None]
     if not scenes or not tracks_by_stamp:
         return None
+    target = target or flight_target(scenes)
     truth, tracks = [], []
     for t, d, c in scenes:
         record = scene_record(t, d, c)
-        truth.append([np.asarray(p["position_m"]) for p in record.truth if p["name"] == TARGET])
+        truth.append([np.asarray(p["position_m"]) for p in record.truth if p["name"] == target])
         established = [
             track
             for track in tracks_by_stamp.get(d["stamp_ns"], {}).get("tracks", [])
-            if track["target"] == TARGET and track["state"] != "tentative"
+            if track["target"] == target and track["state"] != "tentative"
         ]
         established.sort(key=lambda track: (-track["hits"], track["id"]))
         tracks.append(

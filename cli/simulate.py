@@ -3,10 +3,14 @@
 The recording holds what sensor_source would publish — images, IMU batches, LIDAR scans (with --lidar) and
 truth — on the same keys, so `atr run` can replay it through the service graph.
 
+The target is the T-72 unless --target names another vehicle of the family (`atr world export --help` lists them)
+or --target-mesh gives a mesh file; --clutter and --clutter-mesh add confusers (docs/sim.md, "Vehicles").
+
 Examples:
     atr simulate --scenario 1 --run 3 --frames 20 --out flight.mcap
     atr simulate --scenario 3 --run 1 --lidar --noise gaussian:10 --out s3.mcap
-    atr simulate --scenario 2 --run 1 --target-mesh my_tank.ply --out custom.mcap
+    atr simulate --scenario 2 --run 1 --target leopard2 --clutter t72 --clutter m1 --out leopard.mcap
+    atr simulate --scenario 2 --run 1 --target-mesh my_tank.stl:units=mm --out custom.mcap
 
 """
 
@@ -19,8 +23,10 @@ from pathlib import Path
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr simulate`."""
     from bus.flight_messages import add_flight_arguments
+    from cli.world import add_vehicle_arguments
 
     add_flight_arguments(parser)
+    add_vehicle_arguments(parser)
     parser.add_argument("--uav", default="uav1", help="vehicle id in the keys")
     parser.add_argument(
         "--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE"
@@ -31,10 +37,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Simulate and record."""
     from atr.config import load_config
+    from atr.io.mesh import vehicle_sources
     from bus.flight_messages import flight_frames, frame_messages
     from bus.recording import write_messages
 
     config = load_config(None, args.overrides)
+    args.target_mesh, args.clutter_mesh = vehicle_sources(
+        args.target, args.target_mesh, args.clutter, args.clutter_mesh
+    )
     frames = flight_frames(config, args)
 
     def messages():  # noqa: ANN202

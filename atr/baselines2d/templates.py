@@ -85,7 +85,7 @@ def crop_template_views(
     *,
     target_mesh: Mesh | None = None,
     target_name: str | None = None,
-    clutter_meshes: tuple[Mesh, ...] = (),
+    clutter_meshes: tuple[Mesh | tuple[str, Mesh], ...] = (),
 ) -> list[TemplateView]:
     """Render and crop the template views from the template run (scenario 1 run 1 by default).
 
@@ -95,7 +95,7 @@ def crop_template_views(
         config: number of templates, crop margin, visibility floor.
         target_mesh: mesh replacing the T-72, as for `simulate_flight`.
         target_name: name of that target.
-        clutter_meshes: extra confuser meshes, as for `simulate_flight`.
+        clutter_meshes: extra confuser meshes (or (name, mesh) pairs), as for `build_world`.
 
     Returns:
         Up to `n_templates` views, in azimuth order; a step with no frame seeing the target well is skipped.

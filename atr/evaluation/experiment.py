@@ -37,7 +37,7 @@ from atr.evaluation.runner import (
     run_flight,
 )
 from atr.evaluation.timing import reference_workload_ms
-from atr.io.mesh import load_mesh
+from atr.io.mesh import load_mesh, mesh_name, resolve_source
 from atr.sim.noise import parse_noise
 from atr.sim.scenarios import TABLE_II
 from atr.template_store import TemplateStore, template_from_message
@@ -153,7 +153,7 @@ def plan(request: Request) -> Plan:
     overrides = list(request.overrides)
     if request.target_mesh:
         overrides.append(
-            f"pipeline.target_meshes=[{json.dumps(str(Path(request.target_mesh).resolve()))}]"
+            f"pipeline.target_meshes=[{json.dumps(resolve_source(request.target_mesh))}]"
         )
     config = load_config(None, overrides)
     return Plan(
@@ -233,7 +233,7 @@ def _templates_2d(plan_: Plan, progress: Progress) -> None:
             plan_.b2d,
             target_mesh=load_mesh(f0.target_mesh) if f0.target_mesh else None,
             target_name=f0.target if f0.target_mesh else None,
-            clutter_meshes=tuple(load_mesh(p) for p in f0.clutter_meshes),
+            clutter_meshes=tuple((mesh_name(p), load_mesh(p)) for p in f0.clutter_meshes),
         )
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(pickle.dumps(views))

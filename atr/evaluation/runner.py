@@ -19,7 +19,6 @@ import math
 import time
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -86,7 +85,9 @@ class Flight:
     @property
     def target(self) -> str:
         """Name of the target in the truth and in the hypotheses."""
-        return Path(self.target_mesh).stem if self.target_mesh else DEFAULT_TARGET
+        from atr.io.mesh import mesh_name
+
+        return mesh_name(self.target_mesh) if self.target_mesh else DEFAULT_TARGET
 
 
 @dataclass(frozen=True)
@@ -271,14 +272,14 @@ def initial_nav_state(frame: SensorFrame) -> NavState:
 
 def flight_world(flight: Flight, sim_config: SimConfig) -> World:
     """The flight's world (its target and confuser meshes read from their files), as `atr simulate` builds it."""
-    from atr.io.mesh import load_mesh  # Open3D file readers only when a file is given
+    from atr.io.mesh import load_mesh, mesh_name  # Open3D file readers only when a file is given
 
     return build_world(
         scenario_preset(flight.scenario, flight.run),
         flight.seed,
         target_mesh=load_mesh(flight.target_mesh) if flight.target_mesh else None,
         target_name=flight.target,
-        clutter_meshes=[load_mesh(p) for p in flight.clutter_meshes],
+        clutter_meshes=[(mesh_name(p), load_mesh(p)) for p in flight.clutter_meshes],
         config=sim_config,
     )
 

@@ -2,8 +2,10 @@
 from.
 
 Every mesh is in metres, z up, x forward (vehicles) and carries one material index per triangle into
-`atr.sim.materials.MATERIALS`. Primitives are closed where that is cheap, but nothing downstream
-needs watertight meshes: the renderer and the LIDAR only look at the first surface a ray meets.
+`atr.sim.materials.MATERIALS`. The solid primitives (box, extruded profile, loft, cylinder,
+ellipsoid) are closed, their faces counter-clockwise seen from outside. The renderer and the LIDAR
+only look at the first surface a ray meets, either side; the template builder orients its normals
+by the winding, so a vehicle mesh should be closed and wound outward.
 """
 
 from __future__ import annotations
@@ -176,26 +178,70 @@ def box(
 
 
 def extrude_profile(profile_xz: np.ndarray, y0: float, y1: float, material: int = 0) -> Mesh:
-    """Prism from a convex side profile (K, 2) in the x-z plane, extruded from y = y0 to y = y1."""
+    """Closed prism from a convex side profile (K, 2) in the x-z plane, extruded from y = y0 to y = y1,
+    its faces counter-clockwise seen from outside.
+    """
+    m = extrude_profile_inward(profile_xz, y0, y1, material)
+    return Mesh(m.vertices, m.triangles[:, ::-1], m.material)
+
+
+def extrude_profile_inward(profile_xz: np.ndarray, y0: float, y1: float, material: int = 0) -> Mesh:
+    """`extrude_profile` with every face wound the other way (clockwise seen from outside).
+
+    The T-72, the IFV, the 6x6 truck, the car and the gable roofs were built with this winding; they
+    keep it so that their meshes, and every world, template and recording made from them, stay
+    byte-identical. The renderer and the LIDAR do not see the difference (first hit, either side); a
+    consumer of winding-oriented face normals (the template builder's "faces the view" test) does.
+    """
     p = np.asarray(profile_xz, dtype=np.float64)
     k = p.shape[0]
-    # orient the profile counter-clockwise in (x, z) so the faces point outwards
-    if np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]) < 0:
+    if _twice_signed_area(p) < 0:  # counter-clockwise in (x, z)
         p = p[::-1]
     v0 = np.column_stack([p[:, 0], np.full(k, y0), p[:, 1]])
     v1 = np.column_stack([p[:, 0], np.full(k, y1), p[:, 1]])
     v = np.vstack([v0, v1])
+    t = _prism_triangles(k)
+    m = Mesh(v, t, np.full(len(t), material))
+    if y1 < y0:
+        m = Mesh(v, t[:, ::-1], m.material)
+    return m
+
+
+def loft(
+    bottom_xy: np.ndarray, top_xy: np.ndarray, z0: float, z1: float, material: int = 0
+) -> Mesh:
+    """Closed solid between two convex outlines (K, 2) seen from above: bottom_xy at height z0, top_xy
+    at z1 > z0, vertex i of one joined to vertex i of the other (sloped armour, turrets, hulls).
+    """
+    b = np.asarray(bottom_xy, dtype=np.float64)
+    t = np.asarray(top_xy, dtype=np.float64)
+    if b.shape != t.shape or b.ndim != 2 or b.shape[1] != 2 or b.shape[0] < 3:
+        raise InputError(f"loft outlines must both be (K >= 3, 2), got {b.shape} and {t.shape}")
+    if not z1 > z0:
+        raise InputError(f"loft top z1 = {z1} m must be above its bottom z0 = {z0} m")
+    k = b.shape[0]
+    if _twice_signed_area(b) < 0:  # counter-clockwise seen from above, so the faces point outwards
+        b, t = b[::-1], t[::-1]
+    v = np.vstack([np.column_stack([b, np.full(k, z0)]), np.column_stack([t, np.full(k, z1)])])
+    tris = _prism_triangles(k)
+    return Mesh(v, tris, np.full(len(tris), material))
+
+
+def _twice_signed_area(polygon: np.ndarray) -> float:
+    """Shoelace sum of a (K, 2) polygon: positive when counter-clockwise."""
+    p = polygon
+    return float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
+
+
+def _prism_triangles(k: int) -> np.ndarray:
+    """(4K - 4, 3) triangles joining ring 0..K-1 to ring K..2K-1 (sides), and a fan over each ring."""
     tris = []
     for i in range(k):
         j = (i + 1) % k
         tris += [[i, j, k + j], [i, k + j, k + i]]
     for i in range(1, k - 1):
         tris += [[0, i + 1, i], [k, k + i, k + i + 1]]
-    t = np.array(tris)
-    m = Mesh(v, t, np.full(len(t), material))
-    if y1 < y0:
-        m = Mesh(v, t[:, ::-1], m.material)
-    return m
+    return np.array(tris)
 
 
 def cylinder(
@@ -206,9 +252,8 @@ def cylinder(
     axis: str = "z",
     center: Sequence[float] = (0, 0, 0),
     radius_end: float | None = None,
-    caps: bool = True,
 ) -> Mesh:
-    """Cylinder (or frustum when radius_end is given) along axis x, y or z, centred at center."""
+    """Closed cylinder (or frustum when radius_end is given) along axis x, y or z, centred at center."""
     r1 = float(radius) if radius_end is None else float(radius_end)
     a = np.linspace(0, 2 * np.pi, segments, endpoint=False)
     ring0 = np.column_stack(
@@ -220,9 +265,7 @@ def cylinder(
     n = segments
     for i in range(n):
         j = (i + 1) % n
-        tris += [[i, j, n + j], [i, n + j, n + i]]
-        if caps:
-            tris += [[2 * n, j, i], [2 * n + 1, n + i, n + j]]
+        tris += [[i, j, n + j], [i, n + j, n + i], [2 * n, j, i], [2 * n + 1, n + i, n + j]]
     if axis == "x":
         v = v[:, [2, 0, 1]]
     elif axis == "y":
@@ -278,7 +321,8 @@ def gable_roof(
     """Gable roof prism along x: base length x width at center z, ridge height above it."""
     lx, wy = 0.5 * length, 0.5 * width
     prof = np.array([[-wy, 0.0], [wy, 0.0], [0.0, height]])
-    m = extrude_profile(prof, -lx, lx, material)  # profile in (y, z) extruded along x
+    m = extrude_profile_inward(prof, -lx, lx, material)  # profile in (y, z) extruded along x
     v = m.vertices[:, [1, 0, 2]]
-    # swapping x and y mirrors the mesh: flip winding to keep faces outward
+    # swapping x and y mirrors the mesh; flipping the winding back keeps the roofs as they were built
+    # (wound inward, see extrude_profile_inward)
     return Mesh(v + np.asarray(center, float), m.triangles[:, ::-1], m.material)
