@@ -96,8 +96,9 @@ class PoseTrack:
         frame, stamp = int(frame_seq), int(stamp_ns)
         if self._is_repeat(frame, stamp, init is not None):
             return None
-        if init is not None and (self._integrator is None or frame - self._gap not in self._poses):
-            # a flight starts: the INS alignment before take-off (or a fix after a lost track)
+        if init is not None and (self._integrator is None or frame != self._last_frame + 1):
+            # a flight starts: the INS alignment before take-off, a fix after a lost track, or a new
+            # flight's first batch; a fix at the next frame of this flight is an aided fix (below)
             self._integrator = PoseIntegrator(self._config, init)
             self._poses.clear()
             self._lost = None

@@ -59,6 +59,19 @@ def test_a_flight_starting_at_a_later_frame_is_answered_without_a_pair():
     assert first.frame_seq == 5 and first.frame_seq_t is None
 
 
+@pytest.mark.parametrize("gap", [1, 2, 3])
+def test_a_navigation_fix_at_every_frame_pairs_frames_gap_apart(gap: int):
+    # the evaluation's SfM arms fix the navigation at every frame; with pairs two or three frames
+    # apart the fix at frame k must not start a new flight because frame k - gap has no pose yet
+    rng = np.random.default_rng(4)
+    track = PoseTrack(ImuConfig(), gap=gap)
+    answers = []
+    for k in range(8):
+        f, stamp, t, g, a = batch(k, rng)
+        answers.append(track.add_batch(f, stamp, t, g, a, NavState.at_rest(stamp)))
+    assert [p.frame_seq_t for p in answers] == [None] * gap + list(range(8 - gap))
+
+
 def test_lost_batches_are_reported_until_the_next_navigation_fix():
     rng = np.random.default_rng(4)
     track = PoseTrack(ImuConfig(), gap=1)
