@@ -36,9 +36,9 @@ def camera_image(rng: np.random.Generator) -> np.ndarray:
     return np.clip(base + rng.normal(0, 3, base.shape), 0, 255).astype(np.uint8)
 
 
-def messages(rng: np.random.Generator) -> dict[str, tuple[str, dict]]:
-    """Typical messages of the load described in docs/performance/bus.md."""
-    n = 200
+def messages(rng: np.random.Generator, imu_samples: int = 200) -> dict[str, tuple[str, dict]]:
+    """Typical messages of the load described in docs/performance/bus.md: label -> (type, message)."""
+    n = imu_samples
     return {
         "Image 1280x960 rgb8": (
             "Image",
@@ -63,7 +63,7 @@ def messages(rng: np.random.Generator) -> dict[str, tuple[str, dict]]:
                 "points_m": rng.normal(size=(20_000, 3)).astype(np.float32),
             },
         ),
-        "ImuBatch 200 samples": (
+        f"ImuBatch {n} samples": (
             "ImuBatch",
             {
                 "stamp_ns": 1,

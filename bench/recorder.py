@@ -30,7 +30,9 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -44,48 +46,15 @@ def generator(factor: float, duration_s: float) -> int:
     """Publish the load (factor x reference; 0 = frames back to back) and print what was sent as
     JSON."""
     import zenoh
-    from codec import camera_image
+    from codec import messages
 
     from bus import codec, keys
     from bus.session import open_session
 
-    rng = np.random.default_rng(0)
+    # bench/codec.py's image and cloud; one IMU sample per message
+    typical = dict(messages(np.random.default_rng(0), imu_samples=1).values())
+    image, cloud, imu = (codec.encode(t, typical[t]) for t in ("Image", "PointCloud", "ImuBatch"))
     uav = "uav1"
-    image = codec.encode(
-        "Image",
-        {
-            "stamp_ns": 0,
-            "seq": 0,
-            "version": 1,
-            "frame_seq": 0,
-            "encoding": "rgb8",
-            "data": camera_image(rng),
-            "K": np.eye(3),
-        },
-    )
-    cloud = codec.encode(
-        "PointCloud",
-        {
-            "stamp_ns": 0,
-            "seq": 0,
-            "version": 1,
-            "source": "lidar",
-            "frame_seqs": [0],
-            "points_m": rng.normal(size=(20_000, 3)).astype(np.float32),
-        },
-    )
-    imu = codec.encode(
-        "ImuBatch",
-        {
-            "stamp_ns": 0,
-            "seq": 0,
-            "version": 1,
-            "frame_seq": 0,
-            "t_ns": np.zeros(1, np.int64),
-            "gyro_radps": np.zeros((1, 3)),
-            "accel_mps2": np.zeros((1, 3)),
-        },
-    )
     session = open_session()
     pubs = {
         k: session.declare_publisher(k, congestion_control=zenoh.CongestionControl.BLOCK)
@@ -150,6 +119,12 @@ def generator(factor: float, duration_s: float) -> int:
     return 0
 
 
+def _generator_command(factor: float, duration_s: float) -> list[str]:
+    """This script as the load generator (in its own process, as a sensor would be)."""
+    role = ["--role", "generator", "--factor", str(factor), "--duration", str(duration_s)]
+    return [sys.executable, __file__, *role]
+
+
 def one_run(factor: float, duration_s: float, workdir: Path) -> dict:
     from bus import mcap_tools
 
@@ -167,16 +142,7 @@ def one_run(factor: float, duration_s: float, workdir: Path) -> dict:
     try:
         time.sleep(2.0)
         gen = subprocess.run(
-            [
-                sys.executable,
-                __file__,
-                "--role",
-                "generator",
-                "--factor",
-                str(factor),
-                "--duration",
-                str(duration_s),
-            ],
+            _generator_command(factor, duration_s),
             env=bus_env(hub),
             cwd=REPO,
             capture_output=True,
@@ -273,8 +239,8 @@ def profile(factor: float, duration_s: float, zstd_level: int) -> None:
 
     busy: dict[str, float] = {"callback": 0.0, "writer": 0.0, "chunks (zstd+crc+write)": 0.0}
 
-    def timed(name: str, fn):  # noqa: ANN001, ANN202
-        def wrapper(*a, **k):  # noqa: ANN002, ANN003, ANN202
+    def timed(name: str, fn: Callable[..., Any]) -> Callable[..., Any]:
+        def wrapper(*a: Any, **k: Any) -> Any:
             t0 = time.thread_time()  # CPU time of this thread: meaningful on a loaded machine
             try:
                 return fn(*a, **k)
@@ -294,16 +260,7 @@ def profile(factor: float, duration_s: float, zstd_level: int) -> None:
         recorder = Recorder(session, workdir / "p.mcap", RecorderConfig(zstd_level=zstd_level))
         t0, cpu0 = time.perf_counter(), time.process_time()
         gen = subprocess.Popen(
-            [
-                sys.executable,
-                __file__,
-                "--role",
-                "generator",
-                "--factor",
-                str(factor),
-                "--duration",
-                str(duration_s),
-            ],
+            _generator_command(factor, duration_s),
             env=bus_env(hub),
             cwd=REPO,
             stdout=subprocess.PIPE,

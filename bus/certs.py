@@ -133,18 +133,17 @@ def _subject_alt_names(hosts: list[str]) -> str:
     return ",".join(names)
 
 
+# `openssl req` options for a new unencrypted EC P-256 key, written to the file named next
+_NEW_KEY = ("-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes", "-keyout")
+
+
 def make_ca(out: Path, name: str = "atr-deployment-ca", days: int = 3650) -> None:
     """Write out/ca.pem and out/ca.key (a self-signed EC P-256 certificate authority)."""
     out.mkdir(parents=True, exist_ok=True)
     _openssl(
         "req",
         "-x509",
-        "-newkey",
-        "ec",
-        "-pkeyopt",
-        "ec_paramgen_curve:prime256v1",
-        "-nodes",
-        "-keyout",
+        *_NEW_KEY,
         "ca.key",
         "-out",
         "ca.pem",
@@ -179,12 +178,7 @@ def issue(out: Path, name: str, *, hosts: list[str] = (), days: int = DEFAULT_DA
     _openssl(
         "req",
         "-new",
-        "-newkey",
-        "ec",
-        "-pkeyopt",
-        "ec_paramgen_curve:prime256v1",
-        "-nodes",
-        "-keyout",
+        *_NEW_KEY,
         f"{name}.key",
         "-out",
         f"{name}.csr",

@@ -474,6 +474,44 @@ class _StrictStream:
         return data
 
 
+class _UnreadableRecordError(Exception):
+    """A record the mcap reader cannot read: where it starts, and why (`cause`)."""
+
+    def __init__(self, offset: int, cause: Exception) -> None:
+        super().__init__(f"record at offset {offset}: {cause}")
+        self.offset = offset
+        self.cause = cause
+
+
+def _records(f: IO[bytes], size: int, offset: int = 0) -> Iterator[tuple[int, Any, int]]:
+    """(start offset, record, end offset) of each record of `f` from `offset` on (0: the file's start,
+    its magic checked; else the start of a record); chunks are not opened.
+
+    Raises:
+        _UnreadableRecordError: a record cannot be read (a short read's cause is a `_TruncatedError`).
+
+    """
+    f.seek(offset)
+    strict = _StrictStream(f)
+    strict.offset = offset
+    records = StreamReader(
+        strict,
+        skip_magic=offset > 0,
+        emit_chunks=True,
+        record_size_limit=size,  # type: ignore[arg-type]
+    ).records
+    start = offset or len(MAGIC)
+    while True:
+        try:
+            record = next(records)
+        except StopIteration:
+            return
+        except (McapError, struct.error, UnicodeDecodeError, ValueError) as exc:
+            raise _UnreadableRecordError(start, exc) from exc
+        yield start, record, strict.offset
+        start = strict.offset
+
+
 @dataclass
 class _Walk:
     """What one pass over a file found."""
@@ -510,7 +548,7 @@ def _read_summary(path: str | Path) -> _Summary | None:
     try:
         with open(path, "rb") as f:
             summary = make_reader(f).get_summary()
-    except Exception:  # noqa: BLE001 - the mcap reader raises many types on a damaged file
+    except Exception:  # the mcap reader raises many types on a damaged file
         return None
     if summary is None:
         return None
@@ -576,40 +614,28 @@ def _walk(
     size = os.path.getsize(path)
     fallback = summary or _Summary()
     with open(path, "rb") as f:
-        strict = _StrictStream(f)
-        reader = StreamReader(
-            strict,
-            emit_chunks=True,
-            record_size_limit=size,  # type: ignore[arg-type]
-        )
-        records = reader.records
+        records = _records(f, size)
         in_summary = False
         last_chunk_offset: int | None = None
         chunk_message_offsets: dict[int, list[tuple[int, int]]] = {}
-        start = 8
         n_chunk = 0
         while True:
             try:
-                record = next(records)
+                start, record, end = next(records)
             except StopIteration:
                 break
-            except (McapError, struct.error, UnicodeDecodeError, ValueError) as exc:
-                resume = next((o for o in fallback.chunk_offsets if o > start), None)
+            except _UnreadableRecordError as unreadable:
+                exc, at_offset = unreadable.cause, unreadable.offset
+                resume = next((o for o in fallback.chunk_offsets if o > at_offset), None)
                 if resume is None or stop_at_first_problem or in_summary:
-                    _read_problem(w, exc, start)
+                    _read_problem(w, exc, at_offset)
                     break
                 w.problems.append(
-                    f"unreadable record at offset {start} ({exc}); going on at the chunk at "
+                    f"unreadable record at offset {at_offset} ({exc}); going on at the chunk at "
                     f"offset {resume} (from the summary's chunk index)"
                 )
-                f.seek(resume)
-                strict = _StrictStream(f)
-                strict.offset = start = resume
-                records = StreamReader(
-                    strict, skip_magic=True, emit_chunks=True, record_size_limit=size
-                ).records
+                records = _records(f, size, resume)
                 continue
-            end = strict.offset
             at = f"{type(record).__name__} at offset {start}"
             if isinstance(record, (Schema, Channel, Message, Chunk)) and in_summary:
                 if isinstance(record, Schema):
@@ -632,7 +658,6 @@ def _walk(
                 if inner is None:
                     if stop_at_first_problem:
                         break
-                    start = end
                     continue
                 last_log = None
                 times = []
@@ -692,7 +717,6 @@ def _walk(
             if stop_at_first_problem and w.problems:
                 break
             w.complete_up_to = end
-            start = end
     return w
 
 
@@ -1227,45 +1251,40 @@ def _stream(path: Path, wanted: set[str] | None) -> Iterator[tuple[str, Message]
             n += 1
 
     with open(path, "rb") as f:
-        strict = _StrictStream(f)
-        records = StreamReader(strict, emit_chunks=True, record_size_limit=size).records
-        start = 8
         n_chunk = 0
-        while True:
-            try:
-                record = next(records)
-            except StopIteration:
-                break
-            except _TruncatedError:
-                break  # a segment cut short by a crash: read up to its last complete chunk
-            except (McapError, struct.error, UnicodeDecodeError, ValueError) as exc:
+        try:
+            for start, record, _ in _records(f, size):
+                if isinstance(record, Channel):
+                    channels[record.id] = record
+                elif isinstance(record, Message):
+                    take(record)
+                elif isinstance(record, Chunk):
+                    n_chunk += 1
+                    while heap and heap[0][0] <= record.message_start_time:
+                        _, _, topic, message = heapq.heappop(heap)
+                        yield topic, message
+                    problems: list[str] = []
+                    where = f"chunk #{n_chunk} at offset {start}"
+                    inner = _chunk_records(record, where, problems)
+                    if inner is None:
+                        raise RecordingError(
+                            f"{path}: {problems[0]}; `atr mcap recover` copies the chunks that can "
+                            "be read"
+                        )
+                    for _, item in inner:
+                        if isinstance(item, Channel):
+                            channels[item.id] = item
+                        elif isinstance(item, Message):
+                            take(item)
+                elif isinstance(record, DataEnd):
+                    break
+        except _UnreadableRecordError as unreadable:
+            # a segment cut short by a crash is read up to its last complete chunk
+            if not isinstance(unreadable.cause, _TruncatedError):
                 raise RecordingError(
-                    f"{path}: record at offset {start} cannot be read: {exc}"
-                ) from exc
-            if isinstance(record, Channel):
-                channels[record.id] = record
-            elif isinstance(record, Message):
-                take(record)
-            elif isinstance(record, Chunk):
-                n_chunk += 1
-                while heap and heap[0][0] <= record.message_start_time:
-                    _, _, topic, message = heapq.heappop(heap)
-                    yield topic, message
-                problems: list[str] = []
-                inner = _chunk_records(record, f"chunk #{n_chunk} at offset {start}", problems)
-                if inner is None:
-                    raise RecordingError(
-                        f"{path}: {problems[0]}; `atr mcap recover` copies the chunks that can "
-                        "be read"
-                    )
-                for _, item in inner:
-                    if isinstance(item, Channel):
-                        channels[item.id] = item
-                    elif isinstance(item, Message):
-                        take(item)
-            elif isinstance(record, DataEnd):
-                break
-            start = strict.offset
+                    f"{path}: record at offset {unreadable.offset} cannot be read: "
+                    f"{unreadable.cause}"
+                ) from unreadable.cause
     while heap:
         _, _, topic, message = heapq.heappop(heap)
         yield topic, message

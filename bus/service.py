@@ -3,7 +3,7 @@
 A service's main.py stays a thin loop:
 
     def main(argv=None) -> int:
-        args = service_arguments("sfm", __doc__).parse_args(argv)
+        args = service_arguments("sfm", __doc__, keeps="journal").parse_args(argv)
         with start_node("sfm", args, inputs=[...]) as node:
             ...
 """
@@ -14,14 +14,52 @@ import argparse
 import logging
 from typing import TYPE_CHECKING, Any
 
-from bus.node import Node, setup_logging
-
-if TYPE_CHECKING:
+if (
+    TYPE_CHECKING
+):  # bus.node (numpy, the codec) only when a Node opens: the CLI's parsers use this module
     from atr.config import AtrConfig
+    from bus.node import Node
 
 
-def service_arguments(name: str, description: str | None) -> argparse.ArgumentParser:
-    """The arguments every service takes; a service adds its own on the returned parser."""
+def add_zenoh_argument(parser: argparse.ArgumentParser) -> None:
+    """`--zenoh`, the Zenoh config of a process on the bus (bus/session.py reads it)."""
+    parser.add_argument(
+        "--zenoh",
+        metavar="JSON5",
+        help="Zenoh config file (default: ATR_ZENOH_CONFIG, else a peer on ATR_ZENOH_CONNECT or "
+        "loopback)",
+    )
+
+
+def add_overrides_argument(
+    parser: argparse.ArgumentParser,
+    help_text: str = "override one config field, e.g. --set sfm.matcher=surf (repeatable)",
+) -> None:
+    """`--set GROUP.FIELD=VALUE` (repeatable) into `args.overrides`, as atr/config.py's load_config
+    reads them.
+    """
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="GROUP.FIELD=VALUE",
+        help=help_text,
+    )
+
+
+def service_arguments(
+    name: str, description: str | None, keeps: str | None = None
+) -> argparse.ArgumentParser:
+    """The arguments every service takes; a service adds its own on the returned parser.
+
+    Args:
+        name: the service's name.
+        description: its help text (its main.py's docstring).
+        keeps: what a service that survives a restart keeps on disk ("journal", "checkpoint"): adds
+            `--state-dir`, which `start_node` opens the Node with.
+
+    """
     parser = argparse.ArgumentParser(
         prog=f"atr service {name}",
         description=description,
@@ -30,22 +68,15 @@ def service_arguments(name: str, description: str | None) -> argparse.ArgumentPa
     parser.add_argument(
         "--uav", default="uav1", help="vehicle id in the key expressions (default uav1)"
     )
-    parser.add_argument(
-        "--zenoh",
-        metavar="JSON5",
-        help="Zenoh config file (default: ATR_ZENOH_CONFIG, or peer on loopback)",
-    )
+    add_zenoh_argument(parser)
     parser.add_argument(
         "--config", metavar="YAML", help="config file of nested groups (see atr/config.py)"
     )
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="GROUP.FIELD=VALUE",
-        help="override one config field, e.g. --set sfm.matcher=surf (repeatable)",
-    )
+    add_overrides_argument(parser)
+    if keeps is not None:
+        parser.add_argument(
+            "--state-dir", help=f"{keeps} folder (default: ATR_STATE_DIR or one per launcher)"
+        )
     return parser
 
 
@@ -57,7 +88,13 @@ def effective_config(args: argparse.Namespace) -> AtrConfig:
 
 
 def start_node(name: str, args: argparse.Namespace, inputs: list[str], **kwargs: Any) -> Node:
-    """Set up logging and open the service's Node with its inputs subscribed."""
+    """Set up logging and open the service's Node with its inputs subscribed (and its state folder,
+    when it takes `--state-dir`).
+    """
+    from bus.node import Node, default_state_dir, setup_logging
+
+    if "state_dir" in args:
+        kwargs.setdefault("state_dir", args.state_dir or default_state_dir())
     setup_logging(name)
     logging.getLogger("atr").info("starting (uav %s, inputs %s)", args.uav, inputs)
     return Node(name, args.uav, inputs, zenoh_config=args.zenoh, **kwargs)

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import argparse
 
+from bus.service import add_zenoh_argument
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr record`."""
@@ -26,9 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="MCAP file to write (folders are created); never overwritten: when it exists, the "
         "next segment OUT.1.mcap, OUT.2.mcap, ... is written",
     )
-    parser.add_argument(
-        "--zenoh", metavar="CONFIG", help="Zenoh JSON5 config (default: ATR_ZENOH_* env)"
-    )
+    add_zenoh_argument(parser)
     parser.add_argument(
         "--uav", default="uav1", help="vehicle id of the recorder's own status/errors keys"
     )

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import argparse
 
+from bus.service import add_zenoh_argument
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr replay`."""
@@ -29,9 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     mode.add_argument(
         "--lock-step", action="store_true", help="wait for the pipeline's answer to every frame"
     )
-    parser.add_argument(
-        "--zenoh", metavar="CONFIG", help="Zenoh JSON5 config (default: ATR_ZENOH_* env)"
-    )
+    add_zenoh_argument(parser)
     parser.add_argument("--uav", help="replay only this vehicle's inputs (default: all)")
     parser.add_argument(
         "--answer-key",

@@ -585,43 +585,34 @@ def _header_section(
     return parts
 
 
+def _f1_groups(
+    figs: Figures,
+    heading: str,
+    groups: Mapping[Any, Mapping[str, Mapping[str, Any]]],
+    figure: tuple[str, str],
+    column: str = "",
+    intro: str | None = None,
+) -> list[str]:
+    """A section of F1 per group of scenes (`_f1_by`): its heading, an intro, the table (columns named
+    `column` + group) and the bar chart `figure` (file name, title).
+    """
+    f1 = {k: {arm: v["f1"] for arm, v in g.items()} for k, g in groups.items()}
+    intro_lines = [intro, ""] if intro else []
+    return ["", heading, "", *intro_lines, _f1_table(groups, column), "", figs.bars(*figure, f1)]
+
+
 def _range_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> list[str]:
     """The report's F1 per UAV–target range (Fig. 4)."""
-    parts: list[str] = []
-    # Fig. 4: range
     by_range = _f1_by(clean, lambda r: f"{int(r['range_m'])} m (scenario {r['scenario']})")
-    parts += [
-        "",
-        "## F1 per UAV–target range (Fig. 4)",
-        "",
-        _f1_table(by_range, ""),
-        "",
-        figs.bars(
-            "fig4_range",
-            "F1 per range (Fig. 4)",
-            {k: {a: v["f1"] for a, v in g.items()} for k, g in by_range.items()},
-        ),
-    ]
-    return parts
+    figure = ("fig4_range", "F1 per range (Fig. 4)")
+    return _f1_groups(figs, "## F1 per UAV–target range (Fig. 4)", by_range, figure)
 
 
 def _obliquity_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> list[str]:
     """The report's F1 per obliquity (Fig. 5), and the best per method beside §III-D-2."""
-    parts: list[str] = []
-    # Fig. 5: obliquity
     by_obl = _f1_by(clean, lambda r: f"{int(r['obliquity_deg'])} deg")
-    parts += [
-        "",
-        "## F1 per obliquity, all ranges (Fig. 5)",
-        "",
-        _f1_table(by_obl, ""),
-        "",
-        figs.bars(
-            "fig5_obliquity",
-            "F1 per obliquity (Fig. 5)",
-            {k: {a: v["f1"] for a, v in g.items()} for k, g in by_obl.items()},
-        ),
-    ]
+    figure = ("fig5_obliquity", "F1 per obliquity (Fig. 5)")
+    parts = _f1_groups(figs, "## F1 per obliquity, all ranges (Fig. 5)", by_obl, figure)
     by_class = _f1_by(clean, lambda r: OBLIQUITY_CLASS.get(float(r["obliquity_deg"]), "other"))
     class_outcomes = {
         cls: _scene_outcomes(
@@ -909,25 +900,22 @@ def _noise_section(details: Sequence[Mapping[str, Any]], figs: Figures) -> list[
             [r for r in details if (r["scenario"], r["run"], arm_label(r)) in common],
             lambda r: r["noise"],
         )
-        parts += [
-            "",
-            "## Robustness to shot noise and Gaussian noise (Figs. 11, 12)",
-            "",
+        intro = (
             "Noise as implemented by the simulator (`atr.sim.noise`): shot = Poisson photo-electrons on the "
             "images and Poisson LIDAR ranges; gaussian:σ = σ cm on each LIDAR coordinate and σ/100 of full "
             "scale on the image. Only the runs flown with every noise setting are pooled, so each column "
             "holds the same scenes: "
             + ", ".join(f"scenario {s} run {r}" for s, r in sorted({(c[0], c[1]) for c in common}))
-            + ".",
-            "",
-            _f1_table(by_noise, "noise"),
-            "",
-            figs.bars(
-                "fig11_12_noise",
-                "F1 under noise (Figs. 11, 12)",
-                {k: {a: v["f1"] for a, v in g.items()} for k, g in by_noise.items()},
-            ),
-        ]
+            + "."
+        )
+        parts += _f1_groups(
+            figs,
+            "## Robustness to shot noise and Gaussian noise (Figs. 11, 12)",
+            by_noise,
+            ("fig11_12_noise", "F1 under noise (Figs. 11, 12)"),
+            column="noise",
+            intro=intro,
+        )
     else:
         parts += [
             "",

@@ -18,15 +18,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from bus.service import add_overrides_argument
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr run`."""
     parser.add_argument("input", type=Path, help="recording whose sensor messages are replayed")
     parser.add_argument("--out", type=Path, required=True, help="recording of the whole run")
     parser.add_argument("--layout", default="local", help="layout name in compose/ or a file")
-    parser.add_argument(
-        "--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE"
-    )
+    add_overrides_argument(parser, "config override passed to every service (repeatable)")
     parser.add_argument(
         "--answer-timeout", type=float, default=600.0, help="lock-step wait per frame, s"
     )

@@ -19,6 +19,8 @@ import argparse
 import time
 from pathlib import Path
 
+from bus.service import add_overrides_argument
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr up`."""
@@ -28,14 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--var", action="append", default=[], metavar="NAME=VALUE", help="layout variable"
     )
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="GROUP.FIELD=VALUE",
-        help="config override passed to every pipeline service",
-    )
+    add_overrides_argument(parser, "config override passed to every pipeline service (repeatable)")
     parser.add_argument(
         "--host", action="append", help="start only the processes of this host (repeatable)"
     )

@@ -24,7 +24,6 @@ import numpy as np
 from atr.recognition import Template, recognize
 from bus import keys
 from bus.clouds import cloud_points
-from bus.node import default_state_dir
 from bus.service import effective_config, service_arguments, start_node
 
 
@@ -43,11 +42,7 @@ def _detection(detection: object) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the service until stopped."""
-    parser = service_arguments("atr_matcher", __doc__)
-    parser.add_argument(
-        "--state-dir", help="journal folder (default: ATR_STATE_DIR or one per launcher)"
-    )
-    args = parser.parse_args(argv)
+    args = service_arguments("atr_matcher", __doc__, keeps="journal").parse_args(argv)
     config = effective_config(args)
     pipeline, recognition = config.pipeline, config.recognition
     source_key = (
@@ -58,8 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     ]
     templates: list[Template] = []
     answered: deque[tuple[str | None, int]] = deque(maxlen=64)  # (source, seq) of the last clouds
-    state_dir = args.state_dir or default_state_dir()
-    with start_node("atr_matcher", args, inputs=[source_key], state_dir=state_dir) as node:
+    with start_node("atr_matcher", args, inputs=[source_key]) as node:
         node.ready()
         for message in node.events():
             with node.handling(message):

@@ -25,23 +25,15 @@ import time
 from atr.imu import relative_camera_pose
 from atr.imu.pose_track import FramePose, PoseTrack, nav_state
 from bus import keys
-from bus.node import Node, default_state_dir
+from bus.node import Node
 from bus.service import effective_config, service_arguments, start_node
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the service until stopped."""
-    parser = service_arguments("pose_integrator", __doc__)
-    parser.add_argument(
-        "--state-dir", help="checkpoint folder (default: ATR_STATE_DIR or one per launcher)"
-    )
-    args = parser.parse_args(argv)
+    args = service_arguments("pose_integrator", __doc__, keeps="checkpoint").parse_args(argv)
     config = effective_config(args)
-    state_dir = args.state_dir or default_state_dir()
-    inputs = [keys.imu(args.uav)]
-    with start_node(
-        "pose_integrator", args, inputs=inputs, state_dir=state_dir, replay_lost=True
-    ) as node:
+    with start_node("pose_integrator", args, inputs=[keys.imu(args.uav)], replay_lost=True) as node:
         saved = node.load_state()
         track = (
             PoseTrack(config.imu, config.sfm.pair_gap_frames)

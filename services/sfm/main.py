@@ -27,7 +27,7 @@ from atr.sfm import reconstruct
 from atr.sfm.pairing import Answer, FramePairer, Missing, NoPartner
 from bus import keys
 from bus.clouds import compact_points
-from bus.node import Message, default_state_dir
+from bus.node import Message
 from bus.service import effective_config, service_arguments, start_node
 
 # How long an image waits for its own frame's IMU batch before the batch is taken as lost. The batch is
@@ -58,18 +58,13 @@ def _cloud(
 
 def main(argv: list[str] | None = None) -> int:
     """Run the service until stopped."""
-    parser = service_arguments("sfm", __doc__)
-    parser.add_argument(
-        "--state-dir", help="journal folder (default: ATR_STATE_DIR or one per launcher)"
-    )
-    args = parser.parse_args(argv)
+    args = service_arguments("sfm", __doc__, keeps="journal").parse_args(argv)
     full_config = effective_config(args)
     config, compact = full_config.sfm, full_config.pipeline.compact_clouds
     source = f"sfm-{config.matcher}"
     pairer = FramePairer(config.pair_gap_frames)
     inputs = [keys.imu(args.uav), keys.image(args.uav), keys.relative_pose(args.uav)]
-    state_dir = args.state_dir or default_state_dir()
-    with start_node("sfm", args, inputs=inputs, state_dir=state_dir) as node:
+    with start_node("sfm", args, inputs=inputs) as node:
         node.ready()
 
         def publish_cloud(message: dict) -> None:

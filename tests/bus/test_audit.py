@@ -17,6 +17,9 @@ from mcap.writer import Writer as McapLibWriter
 from bus import audit as auditing
 from bus import codec
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from _atr_cli import atr  # noqa: E402
+
 PROVENANCE = {"package_version": "0.1.0", "config_sha256": "abc", "source_sha256": "def"}
 
 
@@ -125,26 +128,18 @@ def test_no_provenance_and_a_cut_file_are_problems(tmp_path: Path) -> None:
 
 
 def test_cli_exit_codes_and_json(tmp_path: Path) -> None:
-    def atr(*args: str) -> subprocess.CompletedProcess[str]:
-        return subprocess.run(
-            [sys.executable, "-m", "cli.main", "audit", *args],
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
-
     good, bad = tmp_path / "good.mcap", tmp_path / "bad.mcap"
     _flight(good)
     _flight(bad, lose_detection=3)
-    ok = atr(str(good), "--json", str(tmp_path / "a.json"))
+    ok = atr("audit", str(good), "--json", str(tmp_path / "a.json"))
     assert ok.returncode == 0 and "complete and consistent" in ok.stdout, ok.stderr
     assert (
         json.loads((tmp_path / "a.json").read_text())["publishers"]["atr/uav1/detections"]["count"]
         == 8
     )
-    fail = atr(str(bad))
+    fail = atr("audit", str(bad))
     assert fail.returncode == 1 and "PROBLEM: atr/uav1/detections: 1 message(s) lost" in fail.stdout
-    missing = atr(str(tmp_path / "none.mcap"))
+    missing = atr("audit", str(tmp_path / "none.mcap"))
     assert missing.returncode == 2 and "does not exist" in missing.stderr
     for result in (ok, fail, missing):
         assert "Traceback" not in result.stderr

@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+import zenoh
 
 from atr.errors import AtrError
 from bus import mcap_tools
@@ -20,15 +23,19 @@ from conftest import peer_config  # noqa: E402
 pytestmark = pytest.mark.e2e
 
 
-def _wait(condition, timeout_s: float = 60.0) -> None:  # noqa: ANN001
+def _wait(condition: Callable[[], bool], timeout_s: float = 60.0) -> None:
     deadline = time.monotonic() + timeout_s
     while not condition():
         assert time.monotonic() < deadline, "the recorder did not take every message in time"
         time.sleep(0.05)
 
 
-def test_66000_distinct_keys_do_not_stop_the_recording(hub: str, tmp_path: Path) -> None:
-    out = tmp_path / "flood.mcap"
+@contextmanager
+def _recording(
+    hub: str, out: Path
+) -> Iterator[tuple[Recorder, zenoh.Session, list[tuple[str, AtrError]]]]:
+    """A Recorder writing `out` on its own session, a peer session to put with, and the problems the
+    recorder reports; the sessions close on exit."""
     problems: list[tuple[str, AtrError]] = []
     recorder_session = open_session(peer_config(hub))
     peer = open_session(peer_config(hub))
@@ -37,6 +44,15 @@ def test_66000_distinct_keys_do_not_stop_the_recording(hub: str, tmp_path: Path)
             recorder_session, out, on_problem=lambda key, exc: problems.append((key, exc))
         )
         time.sleep(0.5)  # the subscription reaches the peer
+        yield recorder, peer, problems
+    finally:
+        peer.close()
+        recorder_session.close()
+
+
+def test_66000_distinct_keys_do_not_stop_the_recording(hub: str, tmp_path: Path) -> None:
+    out = tmp_path / "flood.mcap"
+    with _recording(hub, out) as (recorder, peer, problems):
         flood = 66_000
         for i in range(flood):
             peer.put(f"atr/flood/{i}", b"x")
@@ -44,9 +60,6 @@ def test_66000_distinct_keys_do_not_stop_the_recording(hub: str, tmp_path: Path)
             peer.put("atr/uav1/imu", bytes([i]))
         _wait(lambda: recorder.stats.messages + recorder.stats.refused == flood + 5)
         stats = recorder.close()  # the old recorder failed here: channel id beyond 65535
-    finally:
-        peer.close()
-        recorder_session.close()
 
     cap = recorder.config.max_foreign_keys
     assert (stats.refused, stats.write_errors) == (flood - cap, 0)
@@ -63,14 +76,7 @@ def test_a_message_that_cannot_be_written_does_not_stop_the_others(
     hub: str, tmp_path: Path
 ) -> None:
     out = tmp_path / "one-bad.mcap"
-    problems: list[tuple[str, AtrError]] = []
-    recorder_session = open_session(peer_config(hub))
-    peer = open_session(peer_config(hub))
-    try:
-        recorder = Recorder(
-            recorder_session, out, on_problem=lambda key, exc: problems.append((key, exc))
-        )
-        time.sleep(0.5)
+    with _recording(hub, out) as (recorder, peer, problems):
         peer.put("atr/uav1/imu", b"before")
         _wait(lambda: recorder.stats.messages == 1)
         # what the writer thread would get from a broken callback: no payload at all
@@ -78,9 +84,6 @@ def test_a_message_that_cannot_be_written_does_not_stop_the_others(
         peer.put("atr/uav1/imu", b"after")
         _wait(lambda: recorder.stats.messages == 2)
         stats = recorder.close()
-    finally:
-        peer.close()
-        recorder_session.close()
 
     assert stats.write_errors == 1 and recorder.failure is None
     assert any("not recorded" in str(exc) for _, exc in problems), problems

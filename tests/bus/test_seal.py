@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import subprocess
 import sys
 from pathlib import Path
 
@@ -15,6 +14,9 @@ from mcap.writer import Writer as McapLibWriter
 
 from atr.errors import ConfigError, RecordingError
 from bus import seal as sealing
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from _atr_cli import atr  # noqa: E402
 
 # (topic, log_time, publish_time, sequence, payload)
 Row = tuple[str, int, int, int, bytes]
@@ -166,11 +168,6 @@ def test_keys_are_refused_clearly(tmp_path: Path, keys: tuple[Path, Path]) -> No
 
 
 def test_cli_exit_codes(tmp_path: Path) -> None:
-    def atr(*args: str) -> subprocess.CompletedProcess[str]:
-        return subprocess.run(
-            [sys.executable, "-m", "cli.main", *args], capture_output=True, text=True, timeout=120
-        )
-
     path = tmp_path / "f.mcap"
     _write(path, _rows())
     assert atr("keygen", "--out", str(tmp_path / "k")).returncode == 0

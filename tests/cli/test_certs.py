@@ -2,26 +2,13 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-
-
-def certs(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    return subprocess.run(
-        [sys.executable, "-m", "cli.main", "certs", *args],
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from _atr_cli import atr  # noqa: E402
 
 
 @pytest.mark.parametrize(
@@ -35,7 +22,7 @@ def certs(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
 def test_a_bad_ground_address_is_refused_naming_it(
     tmp_path: Path, ground: str, expected: str
 ) -> None:
-    done = certs("--out", "deploy", "--ground", ground, cwd=tmp_path)
+    done = atr("certs", "--out", "deploy", "--ground", ground, cwd=tmp_path)
     assert done.returncode == 1, done.stdout
     assert "Traceback" not in done.stderr
     assert repr(ground) in done.stderr and expected in done.stderr, done.stderr
@@ -44,7 +31,7 @@ def test_a_bad_ground_address_is_refused_naming_it(
 
 def test_an_out_that_is_a_file_is_refused(tmp_path: Path) -> None:
     (tmp_path / "deploy").write_text("")
-    done = certs("--out", "deploy", "--ground", "10.0.0.1", cwd=tmp_path)
+    done = atr("certs", "--out", "deploy", "--ground", "10.0.0.1", cwd=tmp_path)
     assert done.returncode == 1 and "Traceback" not in done.stderr
     assert "--out deploy is a file" in done.stderr, done.stderr
 
@@ -52,13 +39,13 @@ def test_an_out_that_is_a_file_is_refused(tmp_path: Path) -> None:
 def test_the_air_recorder_gets_a_signing_key_once(tmp_path: Path) -> None:
     """`atr certs` makes the air recorder's Ed25519 pair beside the certificates; a second run keeps
     it, since the ground has pinned the public key."""
-    first = certs("--out", "deploy", "--ground", "127.0.0.1", cwd=tmp_path)
+    first = atr("certs", "--out", "deploy", "--ground", "127.0.0.1", cwd=tmp_path)
     assert first.returncode == 0, first.stderr
     public = tmp_path / "deploy" / "air-uav1-recorder.pub"
     private = tmp_path / "deploy" / "air-uav1-recorder.key"
     assert public.is_file() and private.is_file()
     assert private.stat().st_mode & 0o077 == 0  # the owner's only
     pinned = public.read_bytes()
-    again = certs("--out", "deploy", "--ground", "127.0.0.1", cwd=tmp_path)
+    again = atr("certs", "--out", "deploy", "--ground", "127.0.0.1", cwd=tmp_path)
     assert again.returncode == 0, again.stderr
     assert public.read_bytes() == pinned

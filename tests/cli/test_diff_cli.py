@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -14,6 +13,8 @@ from cli.main import main
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "tests" / "bus"))
+sys.path.insert(0, str(REPO / "tests"))
+from _atr_cli import atr  # noqa: E402
 from test_diff import CLOUD, DETECTIONS, STAMPS, STATUS, flight, write  # noqa: E402
 
 
@@ -71,11 +72,5 @@ def test_errors_exit_2_with_a_message_and_no_traceback(pair, tmp_path, capsys):
     ]:
         assert main(argv) == 2
         assert said in capsys.readouterr().err
-    done = subprocess.run(
-        [sys.executable, "-m", "cli.main", "diff", str(base), "--bogus"],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    done = atr("diff", str(base), "--bogus")
     assert done.returncode == 2 and "Traceback" not in done.stderr and "usage" in done.stderr

@@ -1,12 +1,16 @@
 """`atr recognize` end to end on files: PCL's milk carton (JSON contract) and bad inputs."""
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from cli.main import main
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from _atr_cli import atr  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[3] / "shared"
 PCL = SHARED / "data" / "pcl"
@@ -83,23 +87,6 @@ def test_bad_files_exit_1(tmp_path, capsys):
                  "--resolution", "abc"]) == 1  # fmt: skip
 
 
-def _atr(*args: str, cwd: Path):
-    import os
-    import subprocess
-    import sys
-
-    repo = Path(__file__).resolve().parents[2]
-    env = dict(os.environ, PYTHONPATH=str(repo) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    return subprocess.run(
-        [sys.executable, "-m", "cli.main", *args],
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-
-
 def test_a_scene_read_only_in_part_a_directory_or_an_absurd_value_is_refused(tmp_path):
     rng = np.random.default_rng(0)
     np.savetxt(tmp_path / "model.xyz", rng.uniform(0, 3, (300, 3)))
@@ -121,10 +108,10 @@ def test_a_scene_read_only_in_part_a_directory_or_an_absurd_value_is_refused(tmp
         "far.xyz": "point 7 has z = 1e+30",
     }
     for scene, reason in cases.items():
-        done = _atr("recognize", "--model", "model.xyz", "--scene", scene, cwd=tmp_path)
+        done = atr("recognize", "--model", "model.xyz", "--scene", scene, cwd=tmp_path)
         assert done.returncode == 1, (scene, done.stdout, done.stderr)
         assert "Traceback" not in done.stderr
         assert scene in done.stderr and reason in done.stderr, done.stderr
-    done = _atr("recognize", "--model", "model.xyz", "--scene", "model.xyz", "--viewpoint",
-                "0", "1e30", "0", cwd=tmp_path)  # fmt: skip
+    done = atr("recognize", "--model", "model.xyz", "--scene", "model.xyz", "--viewpoint",
+               "0", "1e30", "0", cwd=tmp_path)  # fmt: skip
     assert done.returncode == 1 and "--viewpoint" in done.stderr and "Traceback" not in done.stderr

@@ -3,34 +3,25 @@ at a time caught by `atr diff` with its topic and first differing field. Real re
 
 from __future__ import annotations
 
-import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "tests"))
+from _atr_cli import atr  # noqa: E402
+from _small_camera import SMALL_CAMERA  # noqa: E402
+
 CORPUS = REPO / "recordings"
 BASELINE = CORPUS / "baselines"
 FLIGHT = "s1-run3"
-SMALL = ["--set", "sim.width_px=640", "--set", "sim.height_px=480", "--set", "sim.focal_px=1000"]
-SMALL += ["--set", "pipeline.targets=[t72]"]
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 
-def atr(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "cli.main", *args],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-    )
-
-
 def replay(source: Path, out: Path, *overrides: str) -> Path:
-    done = atr("run", str(source), "--out", str(out), *SMALL, *overrides)
+    done = atr("run", str(source), "--out", str(out), *SMALL_CAMERA, *overrides)
     assert done.returncode == 0, done.stdout + done.stderr
     return out
 

@@ -3,7 +3,6 @@ before any process starts, and a relative path is the user's."""
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 import time
@@ -15,7 +14,8 @@ import pytest
 from bus import keys
 from bus.recording import write_messages
 
-REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from _atr_cli import atr  # noqa: E402
 
 # The smallest layout `atr run` can complete: a hub and the recorder (no pipeline to wait for).
 _RECORDER_ONLY = """
@@ -26,19 +26,6 @@ processes:
   - {name: router, service: router, role: hub, args: [--mode, peer, --listen, "${hub}"]}
   - {name: recorder, service: recorder, role: recorder, args: [--out, "${out}"]}
 """
-
-
-def atr(*args: str, cwd: Path, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
-    return subprocess.run(
-        [sys.executable, "-m", "cli.main", *args],
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=timeout_s,
-    )
 
 
 @pytest.fixture

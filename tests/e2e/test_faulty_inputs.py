@@ -18,39 +18,16 @@ from bus.recording import write_messages
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "tests"))
-from _small_camera import SMALL_CAMERA  # noqa: E402
+from _atr_cli import atr, simulate_small_flight  # noqa: E402
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 UAV = "uav1"
 
 
-def atr(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "cli.main", *args],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-
-
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory) -> list[tuple[str, dict]]:
     """The (key, message) inputs of a 6-frame simulated flight, in order."""
-    path = tmp_path_factory.mktemp("flight") / "flight.mcap"
-    made = atr(
-        "simulate",
-        "--scenario",
-        "1",
-        "--run",
-        "3",
-        "--frames",
-        "6",
-        *SMALL_CAMERA,
-        "--out",
-        str(path),
-    )
-    assert made.returncode == 0, made.stderr
+    path = simulate_small_flight(tmp_path_factory.mktemp("flight") / "flight.mcap", frames=6)
     return [(topic, codec.unpack(m.data)) for topic, m in mcap_tools.iter_messages(path)]
 
 

@@ -6,7 +6,6 @@ loopback, replays in lock-step and records; the recordings are read back with th
 
 from __future__ import annotations
 
-import subprocess
 import sys
 from pathlib import Path
 
@@ -18,21 +17,10 @@ from cli.flight_report import f1_line, summarise
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "tests"))
+from _atr_cli import atr, simulate_small_flight  # noqa: E402
 from _small_camera import SMALL_CAMERA  # noqa: E402
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
-
-
-def atr(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
-    result = subprocess.run(
-        [sys.executable, "-m", "cli.main", *args],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-    )
-    assert result.returncode == 0, result.stdout + result.stderr
-    return result
 
 
 def data_messages(path: Path) -> dict[str, list[bytes]]:
@@ -47,25 +35,16 @@ def data_messages(path: Path) -> dict[str, list[bytes]]:
 
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("flight") / "flight.mcap"
-    atr(
-        "simulate",
-        "--scenario",
-        "1",
-        "--run",
-        "3",
-        "--frames",
-        "4",
-        *SMALL_CAMERA,
-        "--out",
-        str(path),
-    )
-    return path
+    return simulate_small_flight(tmp_path_factory.mktemp("flight") / "flight.mcap", frames=4)
 
 
 def test_run_twice_gives_identical_data_messages(flight, tmp_path):
     outs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
-    printed = [atr("run", str(flight), "--out", str(out), *SMALL_CAMERA).stdout for out in outs]
+    done = [
+        atr("run", str(flight), "--out", str(out), *SMALL_CAMERA, timeout_s=900) for out in outs
+    ]
+    assert all(d.returncode == 0 for d in done), [d.stdout + d.stderr for d in done]
+    printed = [d.stdout for d in done]
     first, second = (data_messages(p) for p in outs)
     # A simulated flight carries its truth: the run prints its F1, judged from what it recorded.
     counts = summarise(outs[0])
