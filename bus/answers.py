@@ -2,12 +2,14 @@
 
 An answer is a message on the answer key (Detections by default) whose stamp_ns is S, or an ErrorReport on any
 `atr/{uav}/{service}/errors` key whose input_stamp_ns is S (docs/architecture.md, "One answer per frame").
-The waiting side's own error reports (e.g. its timeout warnings) answer nothing.
+The waiting side's own error reports (e.g. its timeout warnings) answer nothing. Answers published while
+the link was down arrive when it is back (zenoh-ext's recovery, bus/reliable.py).
 
 A service restarted while a frame is in flight (killed, then started again by its launcher) may have missed
 that frame's inputs, or its answer may have been lost with it. The watch follows every service's Status:
-a `running` Status from a new pid, where another pid of that service ran before, is a restart. A service's
-first start is not one: a flight may begin while slow services (the template store building its templates)
+a `running` Status from a pid not seen before, of a process started after the watch began, where another
+pid of that service ran before, is a restart (two processes of one service, such as the ground's and the
+air's recorders, are not restarts of each other). A service's first start is not one: a flight may begin while slow services (the template store building its templates)
 are still starting, and re-sending then would cost the radio link a frame's clouds for nothing. `wait` then calls its
 `on_restart` (the driver re-publishes the frame's inputs, same bytes and attachments; services answer a
 repeat by re-publishing their answer, or ignore it) and goes on waiting (docs/architecture.md, "Recovery").
@@ -25,10 +27,11 @@ import logging
 import threading
 import time
 from collections.abc import Callable
+from typing import Any
 
 import zenoh
 
-from bus import codec
+from bus import codec, reliable
 from bus.stopping import StopRequest
 
 log = logging.getLogger("atr")
@@ -56,14 +59,15 @@ class AnswerWatch:
         self._own_service = own_service
         self._answers: set[tuple[str, int]] = set()
         self._cv = threading.Condition()
-        self._pids: dict[tuple[str, str], int] = {}  # (uav, service) -> pid of its running process
+        self._started = time.monotonic()
+        self._pids: dict[tuple[str, str], set[int]] = {}  # (uav, service) -> pids seen running
         self.restarts: list[tuple[str, str, int]] = []  # (uav, service, new pid), in order seen
         self._recorders_down: set[tuple[str, str]] = set()  # (uav, service) whose token went away
         self.recorder_returns = 0  # how many times a recorder's token came back
-        self._subscribers = [
-            session.declare_subscriber(answer_key.replace("{uav}", "*"), self._on_answer),
-            session.declare_subscriber("atr/*/*/errors", self._on_error_report),
-            session.declare_subscriber("atr/*/*/status", self._on_status),
+        self._subscribers: list[Any] = [
+            reliable.Subscriber(session, answer_key.replace("{uav}", "*"), self._on_answer),
+            reliable.Subscriber(session, "atr/*/*/errors", self._on_error_report),
+            reliable.Subscriber(session, "atr/*/*/status", self._on_status),
             session.liveliness().declare_subscriber("atr/*/*/alive", self._on_alive, history=True),
         ]
 
@@ -78,6 +82,7 @@ class AnswerWatch:
         try:
             status = codec.unpack(sample.payload.to_bytes())
             service, pid, state = str(status["service"]), int(status["pid"]), status["state"]
+            uptime_s = float(status.get("uptime_s", 0.0))
         except Exception:  # not ours to judge here; the recorder keeps it
             return
         uav = str(sample.key_expr).split("/")[1]
@@ -85,12 +90,14 @@ class AnswerWatch:
             return
         with self._cv:
             if state == "running":
-                known = self._pids.get((uav, service))
-                if known is not None and known != pid:
-                    self.restarts.append((uav, service, pid))
-                    log.warning("%s of %s restarted (pid %d)", service, uav, pid)
-                    self._cv.notify_all()
-                self._pids[(uav, service)] = pid
+                seen = self._pids.setdefault((uav, service), set())
+                if pid not in seen:
+                    started_since = uptime_s < time.monotonic() - self._started
+                    if seen and started_since:
+                        self.restarts.append((uav, service, pid))
+                        log.warning("%s of %s restarted (pid %d)", service, uav, pid)
+                        self._cv.notify_all()
+                    seen.add(pid)
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
         parts = str(sample.key_expr).split("/")

@@ -58,6 +58,8 @@ _ALL_MESSAGES = [
 ]
 # What the air side computes (docs/deployment.md): its services' own keys.
 AIR_SERVICES = ("sensor_source", "pose_integrator", "sfm")
+# What lock-step's answer watch on the air subscribes to, for any vehicle (bus/answers.py).
+ANSWER_WATCH = ("atr/*/detections", "atr/*/*/errors", "atr/*/*/status")
 
 
 def air_name(uav: str) -> str:
@@ -211,9 +213,16 @@ def issue(out: Path, name: str, *, hosts: list[str] = (), days: int = DEFAULT_DA
 
 def ground_access_control(uav: str, matcher_on_air: bool = False) -> dict[str, Any]:
     """The ground router's access control: deny by default; `ground` may do anything; `air-{uav}` may
-    publish only its own services' keys and its truth, subscribe under `atr/{uav}/**`, and query templates.
+    publish only its own services' keys and its truth, subscribe under `atr/{uav}/**` (and to what
+    lock-step's answer watch asks for: the air still receives only `atr/{uav}/**`), and query templates.
 
     With the matcher on the air, the air may also publish `atr/{uav}/detections` and the matcher's keys.
+
+    Recovery after an outage (bus/reliable.py: zenoh-ext's advanced publisher/subscriber): the air may
+    declare the caches of its own keys (`KEY/@adv/pub/**`), send their heartbeats and reply from them;
+    each side may query the other's caches (`**/@adv/**`); the air receives only replies and heartbeats
+    of its own vehicle's keys. Key expressions name `@adv` explicitly: `**` does not match a chunk that
+    starts with `@`.
     """
     services = list(AIR_SERVICES) + (["atr_matcher"] if matcher_on_air else [])
     air_puts = [
@@ -241,21 +250,59 @@ def ground_access_control(uav: str, matcher_on_air: bool = False) -> dict[str, A
                 "permission": "allow",
                 "flows": ["ingress", "egress"],
                 "messages": _ALL_MESSAGES,
-                "key_exprs": ["**"],
+                # `**` does not match chunks that start with `@`: the caches' `KEY/@adv/...`
+                "key_exprs": ["**", "**/@adv/**"],
             },
             {
                 "id": "air-publish",
                 "permission": "allow",
                 "flows": ["ingress"],
                 "messages": ["put"],
-                "key_exprs": sorted(set(air_puts)),
+                # its keys, and their publishers' heartbeats (the last sequence number)
+                "key_exprs": sorted(set(air_puts) | {f"{key}/@adv/pub/**" for key in air_puts}),
             },
             {
                 "id": "air-subscribe",
                 "permission": "allow",
                 "flows": ["ingress"],
                 "messages": ["declare_subscriber"],
-                "key_exprs": [f"atr/{uav}/**", f"sim/{uav}/**"],
+                # and what lock-step's answer watch asks for, for any vehicle (bus/answers.py):
+                # the air still receives only its own vehicle's keys (air-receive)
+                "key_exprs": [
+                    f"atr/{uav}/**",
+                    f"sim/{uav}/**",
+                    f"atr/{uav}/**/@adv/pub/**",
+                    f"sim/{uav}/**/@adv/pub/**",
+                    *[f"{key}{suffix}" for key in ANSWER_WATCH for suffix in ("", "/@adv/pub/**")],
+                ],
+            },
+            {
+                "id": "air-caches",
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": ["declare_queryable"],
+                "key_exprs": sorted({f"{key}/@adv/pub/**" for key in air_puts}),
+            },
+            {
+                "id": "air-cache-replies",
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": ["reply"],
+                "key_exprs": sorted(set(air_puts) | {f"{key}/@adv/pub/**" for key in air_puts}),
+            },
+            {
+                "id": "recovery-queries",
+                "permission": "allow",
+                "flows": ["ingress", "egress"],
+                "messages": ["query"],
+                "key_exprs": ["**/@adv/**"],
+            },
+            {
+                "id": "air-receive-replies",
+                "permission": "allow",
+                "flows": ["egress"],
+                "messages": ["reply"],
+                "key_exprs": [f"atr/{uav}/**", f"atr/{uav}/**/@adv/pub/**"],
             },
             {
                 "id": "air-query-templates",
@@ -271,7 +318,7 @@ def ground_access_control(uav: str, matcher_on_air: bool = False) -> dict[str, A
                 "permission": "allow",
                 "flows": ["egress"],
                 "messages": ["put"],
-                "key_exprs": [f"atr/{uav}/**"],
+                "key_exprs": [f"atr/{uav}/**", f"atr/{uav}/**/@adv/pub/**"],
             },
             {
                 "id": "air-receive-templates",
@@ -285,7 +332,7 @@ def ground_access_control(uav: str, matcher_on_air: bool = False) -> dict[str, A
                 "permission": "allow",
                 "flows": ["egress"],
                 "messages": ["declare_subscriber", "declare_queryable"],
-                "key_exprs": ["**"],
+                "key_exprs": ["**", "**/@adv/**"],
             },
         ],
         "subjects": [
@@ -300,6 +347,10 @@ def ground_access_control(uav: str, matcher_on_air: bool = False) -> dict[str, A
                 "rules": [
                     "air-publish",
                     "air-subscribe",
+                    "air-caches",
+                    "air-cache-replies",
+                    "recovery-queries",
+                    "air-receive-replies",
                     "air-query-templates",
                     "air-receive",
                     "air-receive-templates",
@@ -324,11 +375,13 @@ def air_access_control(images_to_ground: bool = False) -> dict[str, Any]:
         "default_permission": "allow",
         "rules": [
             {
+                # nor their publisher's cache (its replies, its heartbeats, its very existence):
+                # a ground subscriber's recovery would otherwise fetch the images from it
                 "id": "images-stay-on-air",
                 "permission": "deny",
                 "flows": ["egress"],
-                "messages": ["put"],
-                "key_exprs": ["atr/*/camera/image"],
+                "messages": ["put", "reply", "declare_queryable"],
+                "key_exprs": ["atr/*/camera/image", "atr/*/camera/image/@adv/**"],
             }
         ],
         "subjects": [{"id": "radio-link", "link_protocols": ["tls"]}],

@@ -11,8 +11,12 @@ A service is a loop over `node.events()`:
   one input at a time, in arrival order.
 - A message that is not msgpack, breaks its schema, or makes the computation raise becomes an ErrorReport on
   `atr/{uav}/{service}/errors` (and the log), is counted, and the loop goes on with the next input.
-- A gap in a publisher's sequence numbers (an input that never arrived) is counted (`gaps`) and reported on
-  the errors key; an input rejected on arrival is no gap.
+- Every key is published through a zenoh-ext AdvancedPublisher and every input received through an
+  AdvancedSubscriber (bus/reliable.py): inputs hidden by a link outage or a router restart arrive late,
+  in order, from the publisher's cache; those the cache no longer held are reported on the errors key
+  with their exact count and publisher (`lost` in the Status counts them, `gaps` the reports).
+- A gap in the sequence numbers of a publisher Zenoh does not number (an input that never arrived) is
+  counted (`gaps`) and reported on the errors key; an input rejected on arrival is no gap.
 - With a `state_dir`, the input in hand is journalled until the service asks for the next one. A process
   restarted after a kill finds the journal: with `replay_lost` it handles that input again first (the pose
   integrator: small batches, state checkpointed), otherwise it reports it as lost (an ErrorReport with the
@@ -42,7 +46,8 @@ from typing import Any
 import zenoh
 
 from atr.errors import AtrError, BusError, SchemaError
-from bus import codec, keys
+from bus import codec, keys, reliable
+from bus.reliable import LinkBudget, Loss
 from bus.session import open_session
 from bus.stopping import StopRequest, stop_on_signals
 
@@ -74,6 +79,7 @@ class _Raw:
     key: str
     payload: bytes
     attachment: bytes | None
+    sequenced: bool = False  # numbered by Zenoh: its gaps are reported as a Loss, not by seq
 
 
 @dataclass
@@ -86,6 +92,7 @@ class Counters:
     errors: int = 0
     gaps: int = 0
     dropped: int = 0
+    lost: int = 0
     handled_by_key: dict[str, int] = field(default_factory=dict)
 
 
@@ -123,16 +130,20 @@ class Node:
         session: zenoh.Session | None = None,
         state_dir: str | Path | None = None,
         replay_lost: bool = False,
+        budget: LinkBudget | None = None,
     ) -> None:
         self.service = service
         self.uav = uav
         self.source_id = f"{service}@{socket.gethostname()}:{os.getpid()}"
         self.counters = Counters()
         # SimpleQueue, not Queue: a signal handler puts into it (see bus/stopping.py).
-        self._queue: queue.SimpleQueue[_Raw | None] = queue.SimpleQueue()
+        self._queue: queue.SimpleQueue[_Raw | Loss | None] = queue.SimpleQueue()
         self._max_queue = max_queue
         self._stop = StopRequest()
         self._publish_lock = threading.Lock()
+        self._budget = budget or LinkBudget.from_env()
+        self._heartbeat_s = heartbeat_s
+        self._publishers: dict[str, Any] = {}  # key -> its AdvancedPublisher, declared on first use
         self._seq_by_key: dict[str, int] = {}
         self._last_seq: dict[tuple[str, str], int] = {}
         self._dropped_reported = 0
@@ -152,12 +163,11 @@ class Node:
             else:
                 self._lost = lost
         self.session = session if session is not None else open_session(zenoh_config)
-        self._subscribers = [
-            self.session.declare_subscriber(key, self._on_sample) for key in inputs
+        self._subscribers: list[Any] = [
+            reliable.Subscriber(self.session, key, self._on_sample, self._on_loss) for key in inputs
         ]
         self._queryables: list[Any] = []
         self._alive: Any = None  # a liveliness token, from ready() on
-        self._heartbeat_s = heartbeat_s
         self._state = "starting"
         self._heartbeat = threading.Thread(target=self._beat, name="heartbeat", daemon=True)
         self._heartbeat.start()
@@ -216,7 +226,9 @@ class Node:
             self._publish_status("stopping")
         except Exception:  # the session may already be gone at interpreter exit
             log.debug("last status not sent", exc_info=True)
-        for entity in self._subscribers + self._queryables:
+        with self._publish_lock:
+            publishers, self._publishers = list(self._publishers.values()), {}
+        for entity in self._subscribers + self._queryables + publishers:
             entity.undeclare()
         self._subscribers, self._queryables = [], []
         if self._alive is not None:
@@ -229,11 +241,19 @@ class Node:
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
-        raw = _Raw(str(sample.key_expr), sample.payload.to_bytes(), attachment)
+        raw = _Raw(
+            str(sample.key_expr),
+            sample.payload.to_bytes(),
+            attachment,
+            reliable.is_sequenced(sample),
+        )
         if self._queue.qsize() >= self._max_queue:
             self.counters.dropped += 1
             return
         self._queue.put(raw)
+
+    def _on_loss(self, loss: Loss) -> None:
+        self._queue.put(loss)  # reported by the service thread, in arrival order
 
     def pending(self) -> int:
         """Inputs received and not yet handed out by ``events()``."""
@@ -255,6 +275,9 @@ class Node:
             if raw is None:
                 return
             self._report_drops()
+            if isinstance(raw, Loss):
+                self._report_loss(raw)
+                continue
             self.counters.received += 1
             message = self._decode(raw)
             if message is not None:
@@ -271,23 +294,26 @@ class Node:
         except (SchemaError, BusError) as exc:
             seq, stamp = (attachment[0], attachment[1]) if attachment else (None, None)
             if source is not None and isinstance(seq, int):
-                self._check_gap(raw.key, source, seq)  # it arrived: the next one is no gap
+                # it arrived: the next one is no gap
+                self._check_gap(raw.key, source, seq, report=not raw.sequenced)
             self._count_handled(raw.key)
             self.report_error(
                 raw.key, exc, input_seq=seq, input_stamp_ns=stamp, input_source=source
             )
             return None
         if source is not None:
-            self._check_gap(raw.key, source, int(data["seq"]))
+            self._check_gap(raw.key, source, int(data["seq"]), report=not raw.sequenced)
         return Message(raw.key, type_name, data, source)
 
-    def _check_gap(self, key: str, source: str, seq: int) -> None:
+    def _check_gap(self, key: str, source: str, seq: int, report: bool = True) -> None:
         last = self._last_seq.get((key, source))
         self._last_seq[(key, source)] = seq
         if last is None or seq == last + 1:
             return
         if seq <= last:  # sent again (a lock-step driver re-sends a frame after a restart)
             log.info("sequence %d on %s from %s again after %d", seq, key, source, last)
+            return
+        if not report:  # Zenoh numbers this publisher: its losses come as a Loss, counted exactly
             return
         self.counters.gaps += 1
         # no stamp: the missing inputs' frames are unknown, so this answers no frame
@@ -355,6 +381,11 @@ class Node:
         except Exception as exc:
             raise BusError(f"checkpoint {self._path('state')} unreadable: {exc}") from exc
 
+    def _report_loss(self, loss: Loss) -> None:
+        self.counters.gaps += 1
+        self.counters.lost += loss.count
+        self.report_error(loss.key, BusError(loss.reason()), input_source=loss.source)
+
     def _report_drops(self) -> None:
         dropped = self.counters.dropped
         if dropped > self._dropped_reported:
@@ -411,14 +442,7 @@ class Node:
             attachment = codec.encode_attachment(
                 message["seq"], message["stamp_ns"], self.source_id
             )
-            # Data: BLOCK, a slow link delays the publisher instead of silently dropping data (§5).
-            # Status and timing: DROP, a heartbeat must never hold a service (or its shutdown) up.
-            congestion = (
-                zenoh.CongestionControl.BLOCK
-                if keys.is_data_key(key)
-                else zenoh.CongestionControl.DROP
-            )
-            self.session.put(key, payload, attachment=attachment, congestion_control=congestion)
+            self._publisher(key, len(payload)).put(payload, attachment=attachment)
             self.counters.published += 1
             if keys.is_data_key(key):
                 self._last_put[key] = (int(message["stamp_ns"]), payload, attachment)
@@ -437,11 +461,32 @@ class Node:
             last = self._last_put.get(key)
             if last is None or last[0] != int(stamp_ns):
                 return False
-            self.session.put(
-                key, last[1], attachment=last[2], congestion_control=zenoh.CongestionControl.BLOCK
-            )
+            self._publisher(key, len(last[1])).put(last[1], attachment=last[2])
             self.counters.published += 1
         return True
+
+    def _publisher(self, key: str, sample_bytes: int) -> Any:
+        """The key's AdvancedPublisher; the first message's size sizes its cache. Called under
+        the publish lock.
+        """
+        publisher = self._publishers.get(key)
+        if publisher is None:
+            data = keys.is_data_key(key)
+            # Status publishes at the heartbeat, everything else at most once per frame.
+            status = key.endswith("/status")
+            rate_hz = 1.0 / self._heartbeat_s if status else self._budget.rate_hz
+            publisher = reliable.declare_publisher(
+                self.session,
+                key,
+                # Data: BLOCK, a slow link delays the publisher instead of silently dropping data
+                # (§5). Status and timing: DROP, a heartbeat must never hold a service (or its
+                # shutdown) up; a dropped one is fetched again from the cache.
+                congestion=zenoh.CongestionControl.BLOCK if data else zenoh.CongestionControl.DROP,
+                cache_samples=self._budget.cache_samples(rate_hz, sample_bytes),
+                budget=self._budget,
+            )
+            self._publishers[key] = publisher
+        return publisher
 
     def report_error(
         self,
@@ -544,6 +589,7 @@ class Node:
                 "errors": c.errors,
                 "gaps": c.gaps,
                 "dropped": c.dropped,
+                "lost": c.lost,
             },
             "handled_by_key": dict(c.handled_by_key),
         }

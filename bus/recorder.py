@@ -12,6 +12,10 @@
 - one Zenoh subscriber (on `**`, filtered, when several key expressions are asked for), so messages
   are written in the order the link delivered them: Zenoh runs callbacks of different subscribers
   concurrently;
+- it is a zenoh-ext AdvancedSubscriber (bus/reliable.py): what a link outage or a router restart hid
+  is fetched from the publishers' caches and recorded late (log_time = when it arrived), in each
+  publisher's order; what the caches no longer held is reported with its exact count and publisher
+  (`lost` counts the messages, `gaps` the reports);
 - Zenoh's callback only timestamps and enqueues (unbounded queue: no loss); a writer thread does the
   rest;
 - a chunk is closed when it exceeds `chunk_size_bytes`, `flush_interval_s` after its first message,
@@ -42,7 +46,7 @@ from typing import Any
 import zenoh
 
 from atr.errors import AtrError, BusError, ConfigError, RecordingError
-from bus import codec, keys, schemas
+from bus import codec, keys, reliable, schemas
 from bus.mcap_tools import MAX_ID, create_segment, is_closed, segment_path
 from bus.node import Node
 from bus.provenance import (
@@ -52,6 +56,7 @@ from bus.provenance import (
     RunContext,
     gather,
 )
+from bus.reliable import Loss
 from bus.seal import load_private_key, seal
 
 log = logging.getLogger("atr.recorder")
@@ -116,6 +121,7 @@ class RecorderStats:
     without_schema: int = 0
     unstamped: int = 0
     gaps: int = 0
+    lost: int = 0
     queue_max: int = 0
     refused: int = 0
     write_errors: int = 0
@@ -197,7 +203,7 @@ class Recorder:
         exprs = self.config.key_exprs
         self._filters = [zenoh.KeyExpr(k) for k in exprs] if len(exprs) > 1 else []
         sub_key = exprs[0] if len(exprs) == 1 else "**"
-        self._subscribers = [session.declare_subscriber(sub_key, self._on_sample)]
+        self._subscribers = [reliable.Subscriber(session, sub_key, self._on_sample, self._on_loss)]
         self._closed = False
         # Provenance is gathered after the subscription exists (loading the configuration takes a
         # second or two): the recording starts at once, the record follows within a few seconds.
@@ -221,8 +227,13 @@ class Recorder:
         payload = sample.payload.to_bytes()
         attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
         key = str(sample.key_expr)
+        sequenced = reliable.is_sequenced(sample)
         with self._clock:  # receive time and queue order agree, so log times never go back
-            self._queue.put((time.time_ns(), key, payload, attachment))
+            self._queue.put((time.time_ns(), key, payload, attachment, sequenced))
+
+    def _on_loss(self, loss: Loss) -> None:
+        with self._clock:
+            self._queue.put(loss)
 
     # Writer thread --------------------------------------------------------------------------------
 
@@ -243,6 +254,10 @@ class Recorder:
                 return
             if isinstance(item, _Provenance) and self.failure is None:
                 self._write_provenance(item)
+            elif isinstance(item, Loss):
+                self.stats.gaps += 1
+                self.stats.lost += item.count
+                self._problem(item.key, BusError(item.reason()))
             elif item is not None and self.failure is None:
                 try:
                     self._write(*item)
@@ -301,13 +316,20 @@ class Recorder:
             log.warning("%s", exc)
             self._problem(key, exc)
 
-    def _write(self, log_time: int, key: str, payload: bytes, attachment: bytes | None) -> None:
+    def _write(
+        self,
+        log_time: int,
+        key: str,
+        payload: bytes,
+        attachment: bytes | None,
+        sequenced: bool = False,
+    ) -> None:
         channel_id = self._channel_ids.get(key)
         if channel_id is None:
             channel_id = self._add_channel(key)
             if channel_id is None:
                 return
-        seq, stamp_ns = self._seq_stamp(key, payload, attachment)
+        seq, stamp_ns = self._seq_stamp(key, payload, attachment, sequenced)
         self._writer.add_message(channel_id, log_time, stamp_ns, seq, payload)
         s = self.stats
         s.messages += 1
@@ -353,11 +375,13 @@ class Recorder:
         self.stats.channels += 1
         return channel_id
 
-    def _seq_stamp(self, key: str, payload: bytes, attachment: bytes | None) -> tuple[int, int]:
+    def _seq_stamp(
+        self, key: str, payload: bytes, attachment: bytes | None, sequenced: bool
+    ) -> tuple[int, int]:
         decoded = codec.decode_attachment(attachment)
         if decoded is not None:
             seq, stamp_ns, source = decoded
-            self._check_gap(key, source, seq)
+            self._check_gap(key, source, seq, report=not sequenced)
             return seq, stamp_ns
         try:
             message = codec.unpack(payload)
@@ -368,12 +392,13 @@ class Recorder:
             return 0, 0
         return _int_field(message, "seq"), _int_field(message, "stamp_ns")
 
-    def _check_gap(self, key: str, source: str, seq: int) -> None:
+    def _check_gap(self, key: str, source: str, seq: int, report: bool = True) -> None:
         last = self._last_seq.get((key, source))
         if last is not None and seq <= last:
             return  # a message sent again (lock-step's re-send after a restart): nothing lost
         self._last_seq[(key, source)] = seq
-        if last is not None and seq != last + 1:
+        # a publisher Zenoh numbers reports its losses as a Loss (exact, and sooner)
+        if report and last is not None and seq != last + 1:
             self.stats.gaps += 1
             self._problem(
                 key, BusError(f"sequence gap on {key} from {source}: seq {seq} after {last}")
@@ -415,6 +440,7 @@ class Recorder:
             "stop_time_ns": str(time.time_ns()),
             "messages": str(s.messages),
             "gaps": str(s.gaps),
+            "lost": str(s.lost),
             "refused": str(s.refused),
             "write_errors": str(s.write_errors),
         }
@@ -433,7 +459,8 @@ def _int_field(message: dict[Any, Any], name: str) -> int:
 
 class RecorderNode(Node):
     """A `Node` whose Status also carries the recorder's figures: counters messages, bytes,
-    channels, gaps, queue_max, unstamped, refused (messages on keys beyond the cap), write_errors,
+    channels, gaps, lost (messages gone beyond the publishers' caches), queue_max, unstamped, refused
+    (messages on keys beyond the cap), write_errors,
     segment (index of the file written); handled_by_key = messages recorded per topic.
     """
 
@@ -449,6 +476,7 @@ class RecorderNode(Node):
             "bytes": s.bytes,
             "channels": s.channels,
             "gaps": s.gaps,
+            "lost": s.lost,
             "queue_max": s.queue_max,
             "unstamped": s.unstamped,
             "refused": s.refused,

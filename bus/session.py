@@ -1,4 +1,6 @@
-"""Zenoh sessions from JSON5 configs: peer mode on loopback by default, multicast scouting always off.
+"""Zenoh sessions from JSON5 configs: peer mode on loopback by default, multicast scouting always off,
+timestamping always on (every publication carries its publisher's time: bus/reliable.py delivers only
+what was published after a subscription).
 
 Where a config comes from, first match wins:
 1. an explicit `config_path` (a layout's JSON5 file);
@@ -34,6 +36,7 @@ def default_config(
         "connect": {"endpoints": list(connect if connect is not None else [DEFAULT_ENDPOINT])},
         "listen": {"endpoints": list(listen or [])},
         "scouting": {"multicast": {"enabled": False}},
+        "timestamping": {"enabled": True},
     }
 
 
@@ -51,6 +54,7 @@ def load_config(config_path: str | Path | None = None) -> dict[str, Any]:
         except (OSError, ValueError) as exc:
             raise ConfigError(f"zenoh config {path}: {exc}") from exc
         config.setdefault("scouting", {}).setdefault("multicast", {})["enabled"] = False
+        config.setdefault("timestamping", {})["enabled"] = True
     else:
         config = default_config()
     for env, section in (("ATR_ZENOH_CONNECT", "connect"), ("ATR_ZENOH_LISTEN", "listen")):
@@ -69,6 +73,8 @@ def open_session(config: dict[str, Any] | str | Path | None = None) -> zenoh.Ses
 
     """
     as_dict = config if isinstance(config, dict) else load_config(config)
+    if not as_dict.get("timestamping", {}).get("enabled"):
+        as_dict = as_dict | {"timestamping": as_dict.get("timestamping", {}) | {"enabled": True}}
     try:
         return zenoh.open(zenoh.Config.from_json5(json.dumps(as_dict)))
     except zenoh.ZError as exc:

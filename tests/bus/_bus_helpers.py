@@ -103,7 +103,7 @@ def publish(args: argparse.Namespace) -> int:
             for key, message in frame_messages(frame, args.uav, tuple(args.image_shape), rng):
                 try:
                     node.publish(key, message)
-                except Exception as exc:  # noqa: BLE001 - a helper script reports and fails loudly
+                except Exception as exc:  # a helper script reports and fails loudly
                     print(f"publish {key} failed: {exc}", file=sys.stderr)
                     return 1
             time.sleep(args.period)

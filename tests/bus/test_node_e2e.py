@@ -5,6 +5,8 @@ from __future__ import annotations
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +21,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "schemas"))
+from _procs import atr  # noqa: E402
 from _publish_examples import KEYS  # noqa: E402
 from conftest import REPO, bus_env, free_port, peer_config, stop_process, wait_for_port  # noqa: E402
 from test_codec import assert_same, example  # noqa: E402
@@ -45,14 +48,20 @@ def test_every_message_type_round_trips_between_processes(hub):
         assert_same(example(name), data)
 
 
-def _service(name: str, hub: str, *args: str) -> subprocess.Popen[bytes]:
-    return subprocess.Popen(
-        [sys.executable, "-m", "cli.main", "service", name, *args],
-        env=bus_env(hub),
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
+def _collect(session: zenoh.Session, key: str) -> list[dict]:
+    """The messages that arrive on `key` from now on, decoded, in arrival order."""
+    found: list[dict] = []
+    session.declare_subscriber(key, lambda s: found.append(codec.unpack(s.payload.to_bytes())))
+    return found
+
+
+def _collect_by(session: zenoh.Session, key: str, field: str) -> dict[int, dict]:
+    """The last message on `key` per value of its `field` (e.g. frame_seq), from now on."""
+    found: dict[int, dict] = {}
+    session.declare_subscriber(
+        key, lambda s: found.update({(m := codec.unpack(s.payload.to_bytes()))[field]: m})
     )
+    return found
 
 
 def _wait_running(session: zenoh.Session, service: str, timeout_s: float = 120) -> dict:
@@ -72,6 +81,57 @@ def _wait_running(session: zenoh.Session, service: str, timeout_s: float = 120) 
     raise TimeoutError(f"{service} not running after {timeout_s} s")
 
 
+@contextmanager
+def _service(
+    hub: str, name: str, *args: str
+) -> Iterator[tuple[subprocess.Popen[bytes], zenoh.Session]]:
+    """`atr service NAME ARGS` on the hub's bus, running; yields it and a test session on the bus."""
+    service = atr(hub, "service", name, *args)
+    session = open_session(peer_config(hub))
+    try:
+        _wait_running(session, name)
+        yield service, session
+    finally:
+        session.close()
+        stop_process(service)
+
+
+@contextmanager
+def _up_pose_integrator(tmp_path: Path, *args: str) -> Iterator[zenoh.Session]:
+    """`atr up` of a hub and a pose_integrator taking `args`; yields a session on its bus, then stops
+    the layout, which must exit 0."""
+    port = free_port()
+    hub = f"tcp/127.0.0.1:{port}"
+    layout = tmp_path / "mini.yml"
+    layout.write_text(
+        f"name: mini\nvariables: {{uav: uav1, hub: '{hub}'}}\n"
+        "zenoh: compose/zenoh/local.json5\n"
+        "processes:\n  - {name: router, service: router, role: hub, args: [--listen, '${hub}']}\n"
+        f"  - {{name: pose_integrator, service: pose_integrator, args: [{', '.join(args)}]}}\n"
+    )
+    up = atr(hub, "up", str(layout))
+    try:
+        wait_for_port(port, 30)
+        session = open_session(peer_config(hub))
+        try:
+            yield session
+        finally:
+            session.close()
+    finally:
+        assert stop_process(up, 30) == 0
+
+
+def _kill_and_wait_restart(session: zenoh.Session, first: dict) -> dict:
+    """kill -9 the pose_integrator whose running Status is `first`; the Status of the restarted one."""
+    subprocess.run(["kill", "-9", str(first["pid"])], check=True)
+    deadline = time.monotonic() + 60
+    second = first
+    while second["pid"] == first["pid"] and time.monotonic() < deadline:
+        second = _wait_running(session, "pose_integrator", 60)
+    assert second["pid"] != first["pid"]
+    return second
+
+
 def _good_imu(seq: int) -> dict:
     t = 1_000_000_000 + np.arange(1, 21, dtype=np.int64) * 5_000_000
     return {
@@ -87,18 +147,9 @@ def _good_imu(seq: int) -> dict:
 
 
 def test_bad_inputs_are_reported_and_the_next_good_one_is_processed(hub):
-    service = _service("pose_integrator", hub)
-    session = open_session(peer_config(hub))
-    try:
-        _wait_running(session, "pose_integrator")
-        errors, poses = [], []
-        session.declare_subscriber(
-            "atr/uav1/pose_integrator/errors",
-            lambda s: errors.append(codec.unpack(s.payload.to_bytes())),
-        )
-        session.declare_subscriber(
-            "atr/uav1/pose/camera", lambda s: poses.append(codec.unpack(s.payload.to_bytes()))
-        )
+    with _service(hub, "pose_integrator") as (service, session):
+        errors = _collect(session, "atr/uav1/pose_integrator/errors")
+        poses = _collect(session, "atr/uav1/pose/camera")
         time.sleep(0.5)
         good = _good_imu(0)
         bad = [
@@ -123,27 +174,14 @@ def test_bad_inputs_are_reported_and_the_next_good_one_is_processed(hub):
             assert expected in reasons
         assert len(poses) == 1 and poses[0]["frame_seq"] == 0
         assert service.poll() is None  # still alive
-    finally:
-        session.close()
-        stop_process(service)
 
 
 def test_pose_integrator_applies_a_later_init_as_a_navigation_fix(hub):
     """sim.nav_fix_every_frame: a batch's `init` after the first is a fix at its frame; that frame's pose
     is still integrated (the pair ending there used it) and the next pair starts from the fix."""
-    service = _service("pose_integrator", hub)
-    session = open_session(peer_config(hub))
-    try:
-        _wait_running(session, "pose_integrator")
-        poses, pairs = {}, {}
-        session.declare_subscriber(
-            "atr/uav1/pose/camera",
-            lambda s: poses.update({(m := codec.unpack(s.payload.to_bytes()))["frame_seq"]: m}),
-        )
-        session.declare_subscriber(
-            "atr/uav1/pose/relative",
-            lambda s: pairs.update({(m := codec.unpack(s.payload.to_bytes()))["frame_seq_t"]: m}),
-        )
+    with _service(hub, "pose_integrator") as (_, session):
+        poses = _collect_by(session, "atr/uav1/pose/camera", "frame_seq")
+        pairs = _collect_by(session, "atr/uav1/pose/relative", "frame_seq_t")
         time.sleep(0.5)
         jumped = np.eye(4)
         jumped[:3, 3] = [5.0, 0.0, 0.0]
@@ -168,64 +206,27 @@ def test_pose_integrator_applies_a_later_init_as_a_navigation_fix(hub):
         # the pair (1, 2) starts from the fix and integrates from there
         assert np.allclose(pairs[1]["T_world_cam_t"][:3, 3] - origin, [5.0, 0.0, 0.0], atol=1e-6)
         assert np.allclose(poses[2]["T_world_cam"][:3, 3] - origin, [5.0, 0.0, 0.0], atol=1e-6)
-    finally:
-        session.close()
-        stop_process(service)
 
 
 def test_killed_service_is_restarted_by_atr_up(tmp_path):
-    port = free_port()
-    layout = tmp_path / "mini.yml"
-    layout.write_text(
-        f"name: mini\nvariables: {{uav: uav1, hub: 'tcp/127.0.0.1:{port}'}}\n"
-        "zenoh: compose/zenoh/local.json5\n"
-        "processes:\n  - {name: router, service: router, role: hub, args: [--listen, '${hub}']}\n"
-        "  - {name: pose_integrator, service: pose_integrator}\n"
-    )
-    env = bus_env(f"tcp/127.0.0.1:{port}")
-    up = subprocess.Popen(
-        [sys.executable, "-m", "cli.main", "up", str(layout)],
-        env=env,
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-    )
-    try:
-        wait_for_port(port, 30)
-        session = open_session(peer_config(f"tcp/127.0.0.1:{port}"))
-        try:
-            first = _wait_running(session, "pose_integrator")
-            subprocess.run(["kill", "-9", str(first["pid"])], check=True)
-            deadline = time.monotonic() + 60
-            second = first
-            while second["pid"] == first["pid"] and time.monotonic() < deadline:
-                second = _wait_running(session, "pose_integrator", 60)
-            assert second["pid"] != first["pid"]
-            poses = []
-            session.declare_subscriber("atr/uav1/pose/camera", lambda s: poses.append(1))
-            time.sleep(0.5)
-            session.put("atr/uav1/imu", codec.pack(_good_imu(0)))
-            deadline = time.monotonic() + 20
-            while not poses and time.monotonic() < deadline:
-                time.sleep(0.1)
-            assert poses, "the restarted service did not answer"
-        finally:
-            session.close()
-    finally:
-        assert stop_process(up, 30) == 0
+    with _up_pose_integrator(tmp_path) as session:
+        _kill_and_wait_restart(session, _wait_running(session, "pose_integrator"))
+        poses = _collect(session, "atr/uav1/pose/camera")
+        time.sleep(0.5)
+        session.put("atr/uav1/imu", codec.pack(_good_imu(0)))
+        deadline = time.monotonic() + 20
+        while not poses and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert poses, "the restarted service did not answer"
 
 
 def test_template_query_that_times_out_is_reported_and_the_matcher_goes_on(hub):
     # No template store on the bus: the matcher's template query times out for each cloud.
-    service = _service("atr_matcher", hub, "--set", "pipeline.template_timeout_s=1")
-    session = open_session(peer_config(hub))
-    try:
-        _wait_running(session, "atr_matcher")
-        errors = []
-        session.declare_subscriber(
-            "atr/uav1/atr_matcher/errors",
-            lambda s: errors.append(codec.unpack(s.payload.to_bytes())),
-        )
+    with _service(hub, "atr_matcher", "--set", "pipeline.template_timeout_s=1") as (
+        service,
+        session,
+    ):
+        errors = _collect(session, "atr/uav1/atr_matcher/errors")
         time.sleep(0.5)
         for seq in range(2):
             cloud = example("PointCloud") | {"seq": seq, "stamp_ns": 5_000 + seq}
@@ -242,23 +243,12 @@ def test_template_query_that_times_out_is_reported_and_the_matcher_goes_on(hub):
             e["error_type"] == "BusError" and "atr/templates/" in e["reason"] for e in errors
         )
         assert service.poll() is None
-    finally:
-        session.close()
-        stop_process(service)
 
 
 def test_sfm_reports_a_bad_lens_and_reconstructs_the_next_pair(hub):
-    service = _service("sfm", hub)
-    session = open_session(peer_config(hub))
-    try:
-        _wait_running(session, "sfm")
-        errors, clouds = [], []
-        session.declare_subscriber(
-            "atr/uav1/sfm/errors", lambda s: errors.append(codec.unpack(s.payload.to_bytes()))
-        )
-        session.declare_subscriber(
-            "atr/uav1/sfm/cloud", lambda s: clouds.append(codec.unpack(s.payload.to_bytes()))
-        )
+    with _service(hub, "sfm") as (service, session):
+        errors = _collect(session, "atr/uav1/sfm/errors")
+        clouds = _collect(session, "atr/uav1/sfm/cloud")
         time.sleep(0.5)
         texture = np.random.default_rng(5).integers(0, 255, (48, 64), dtype=np.uint8)
         lenses = {0: np.zeros(5), 1: np.array([0.1, 0.0, 0.0]), 2: np.zeros(0)}  # 1: 3 coefficients
@@ -297,9 +287,6 @@ def test_sfm_reports_a_bad_lens_and_reconstructs_the_next_pair(hub):
         # frame 0 is answered (no partner yet); frame 1's pair failed; frame 2's pair is reconstructed
         assert [c["frame_seqs"] for c in clouds] == [[0], [1, 2]]
         assert service.poll() is None  # still alive
-    finally:
-        session.close()
-        stop_process(service)
 
 
 def _batch(frame: int) -> dict:
@@ -313,60 +300,25 @@ def _batch(frame: int) -> dict:
 
 def test_a_killed_pose_integrator_restarts_from_its_checkpoint(tmp_path):
     """kill -9 mid-flight under `atr up`: the restarted process goes on with the flight's track."""
-    port = free_port()
-    layout = tmp_path / "mini.yml"
-    layout.write_text(
-        f"name: mini\nvariables: {{uav: uav1, hub: 'tcp/127.0.0.1:{port}'}}\n"
-        "zenoh: compose/zenoh/local.json5\n"
-        "processes:\n  - {name: router, service: router, role: hub, args: [--listen, '${hub}']}\n"
-        f"  - {{name: pose_integrator, service: pose_integrator, args: [--state-dir, '{tmp_path}']}}\n"
-    )
-    up = subprocess.Popen(
-        [sys.executable, "-m", "cli.main", "up", str(layout)],
-        env=bus_env(f"tcp/127.0.0.1:{port}"),
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-    )
-    try:
-        wait_for_port(port, 30)
-        session = open_session(peer_config(f"tcp/127.0.0.1:{port}"))
-        try:
-            first = _wait_running(session, "pose_integrator")
-            pairs, errors = {}, []
-            session.declare_subscriber(
-                "atr/uav1/pose/relative",
-                lambda s: pairs.update(
-                    {(m := codec.unpack(s.payload.to_bytes()))["frame_seq_t1"]: m}
-                ),
-            )
-            session.declare_subscriber(
-                "atr/uav1/pose_integrator/errors",
-                lambda s: errors.append(codec.unpack(s.payload.to_bytes())["reason"]),
-            )
-            time.sleep(0.5)
+    with _up_pose_integrator(tmp_path, "--state-dir", f"'{tmp_path}'") as session:
+        first = _wait_running(session, "pose_integrator")
+        pairs = _collect_by(session, "atr/uav1/pose/relative", "frame_seq_t1")
+        errors = _collect(session, "atr/uav1/pose_integrator/errors")
+        time.sleep(0.5)
 
-            def fly(frames: range) -> None:
-                for frame in frames:
-                    session.put("atr/uav1/imu", codec.pack(_batch(frame)))
-                    deadline = time.monotonic() + 20
-                    while frame > 0 and frame not in pairs and time.monotonic() < deadline:
-                        time.sleep(0.05)
+        def fly(frames: range) -> None:
+            for frame in frames:
+                session.put("atr/uav1/imu", codec.pack(_batch(frame)))
+                deadline = time.monotonic() + 20
+                while frame > 0 and frame not in pairs and time.monotonic() < deadline:
+                    time.sleep(0.05)
 
-            fly(range(4))
-            subprocess.run(["kill", "-9", str(first["pid"])], check=True)
-            second = first
-            deadline = time.monotonic() + 60
-            while second["pid"] == first["pid"] and time.monotonic() < deadline:
-                second = _wait_running(session, "pose_integrator", 60)
-            time.sleep(0.5)
-            fly(range(4, 7))
-            assert sorted(pairs) == [1, 2, 3, 4, 5, 6], errors
-            assert not errors
-            # the pair across the restart starts where the killed process left frame 3
-            assert np.array_equal(pairs[4]["T_world_cam_t"], pairs[3]["T_world_cam_t1"])
-        finally:
-            session.close()
-    finally:
-        assert stop_process(up, 30) == 0
+        fly(range(4))
+        _kill_and_wait_restart(session, first)
+        time.sleep(0.5)
+        fly(range(4, 7))
+        assert sorted(pairs) == [1, 2, 3, 4, 5, 6], [e["reason"] for e in errors]
+        assert not errors
+        # the pair across the restart starts where the killed process left frame 3
+        assert np.array_equal(pairs[4]["T_world_cam_t"], pairs[3]["T_world_cam_t1"])
     assert not list(tmp_path.glob("pose_integrator-*")), "a clean stop leaves no checkpoint"

@@ -4,8 +4,11 @@
 from __future__ import annotations
 
 import signal
+import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import msgpack
@@ -30,27 +33,35 @@ def _messages(path: Path) -> list[tuple[str, object, object]]:
         return [(c.topic, s, m) for s, c, m in make_reader(f, validate_crcs=True).iter_messages()]
 
 
-def _start_recorder(hub: str, watcher: Watcher, out: Path, *extra: str):
-    proc = atr(hub, "record", "--out", str(out), *extra)
-    watcher.wait_for("recorder")
-    return proc
+@contextmanager
+def _recorder(hub: str, *command: str) -> Iterator[subprocess.Popen[bytes]]:
+    """`atr COMMAND` (a recorder) on the hub's bus, once its Status says it is running."""
+    watcher = Watcher(hub)
+    try:
+        recorder = atr(hub, *command)
+        watcher.wait_for("recorder")
+        yield recorder
+    finally:
+        watcher.close()
+
+
+def _record_published(hub: str, command: tuple[str, ...], *publish: str) -> None:
+    """The recorder `atr COMMAND` records what `_bus_helpers.py publish PUBLISH` sends, then stops on
+    SIGTERM and exits 0."""
+    with _recorder(hub, *command) as recorder:
+        code, err = finish(helper(hub, "publish", *publish))
+        assert code == 0, err
+        time.sleep(0.3)
+        recorder.send_signal(signal.SIGTERM)
+        code, err = finish(recorder)
+        assert code == 0, err
 
 
 def test_records_every_message_as_sent_and_closes_cleanly_on_sigterm(
     hub: str, tmp_path: Path
 ) -> None:
     out = tmp_path / "rec.mcap"
-    watcher = Watcher(hub)
-    try:
-        recorder = _start_recorder(hub, watcher, out)
-        code, err = finish(helper(hub, "publish", "--frames", "4"))
-        assert code == 0, err
-        time.sleep(0.3)
-        recorder.send_signal(signal.SIGTERM)
-        code, err = finish(recorder)
-        assert code == 0, err
-    finally:
-        watcher.close()
+    _record_published(hub, ("record", "--out", str(out)), "--frames", "4")
 
     assert mcap_tools.check(out) == []
     records = _messages(out)
@@ -83,6 +94,7 @@ def test_a_heartbeat_sent_before_the_recorder_is_attached_carries_its_counters(h
             "bytes",
             "channels",
             "gaps",
+            "lost",
             "queue_max",
             "unstamped",
             "refused",
@@ -96,7 +108,6 @@ def test_a_heartbeat_sent_before_the_recorder_is_attached_carries_its_counters(h
 
 def test_bad_input_from_a_foreign_session_is_recorded_as_it_came(hub: str, tmp_path: Path) -> None:
     out = tmp_path / "bad.mcap"
-    watcher = Watcher(hub)
     foreign = open_session(peer_config(hub))
     not_msgpack = b"\xc1\xff definitely not msgpack"
     breaks_schema = msgpack.packb({"stamp_ns": 77, "seq": 3, "encoding": "bgr16"})
@@ -108,17 +119,16 @@ def test_bad_input_from_a_foreign_session_is_recorded_as_it_came(hub: str, tmp_p
         ("atr/elsewhere/unknown/thing", unknown_key, b"\x00garbage attachment"),
     ]
     try:
-        recorder = _start_recorder(hub, watcher, out)
-        time.sleep(0.3)
-        for key, payload, attachment in sent:
-            foreign.put(key, payload, attachment=attachment)
-        time.sleep(0.5)
-        recorder.send_signal(signal.SIGINT)
-        code, err = finish(recorder)
-        assert code == 0, err
+        with _recorder(hub, "record", "--out", str(out)) as recorder:
+            time.sleep(0.3)
+            for key, payload, attachment in sent:
+                foreign.put(key, payload, attachment=attachment)
+            time.sleep(0.5)
+            recorder.send_signal(signal.SIGINT)
+            code, err = finish(recorder)
+            assert code == 0, err
     finally:
         foreign.close()
-        watcher.close()
 
     assert mcap_tools.check(out) == []
     got = {t: (s, m) for t, s, m in _messages(out) if t in {k for k, _, _ in sent}}
@@ -140,16 +150,12 @@ def test_bad_input_from_a_foreign_session_is_recorded_as_it_came(hub: str, tmp_p
 
 def test_kill_9_leaves_a_file_that_recovers_up_to_its_last_chunk(hub: str, tmp_path: Path) -> None:
     out = tmp_path / "crash.mcap"
-    watcher = Watcher(hub)
-    try:
-        recorder = _start_recorder(hub, watcher, out, "--flush-interval", "0.2")
+    with _recorder(hub, "record", "--out", str(out), "--flush-interval", "0.2") as recorder:
         code, err = finish(helper(hub, "publish", "--frames", "6", "--image-shape", "240", "320"))
         assert code == 0, err
         time.sleep(1.0)  # several flush intervals: every published message is in a written chunk
         recorder.send_signal(signal.SIGKILL)
         finish(recorder)
-    finally:
-        watcher.close()
 
     problems = mcap_tools.check(out)
     assert problems and any("Footer" in p or "truncated" in p for p in problems), problems
@@ -164,18 +170,7 @@ def test_kill_9_leaves_a_file_that_recovers_up_to_its_last_chunk(hub: str, tmp_p
 
 def _record_two_frames(hub: str, out: Path, *args: str) -> None:
     """The recorder service with `args` records two published frames, then stops on SIGTERM."""
-    watcher = Watcher(hub)
-    try:
-        recorder = atr(hub, "service", "recorder", "--out", str(out), *args)
-        watcher.wait_for("recorder")
-        code, err = finish(helper(hub, "publish", "--frames", "2"))
-        assert code == 0, err
-        time.sleep(0.3)
-        recorder.send_signal(signal.SIGTERM)
-        code, err = finish(recorder)
-        assert code == 0, err
-    finally:
-        watcher.close()
+    _record_published(hub, ("service", "recorder", "--out", str(out), *args), "--frames", "2")
 
 
 def test_every_recording_says_what_made_it_and_closes_with_a_marker(

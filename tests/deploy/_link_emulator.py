@@ -15,20 +15,28 @@ the TCP path instead (air services dial it; it dials the ground router) and shap
   see a clean link).
 - buffering: at most `buffer_bytes` wait in each direction; beyond that the proxy stops reading, so the sender's
   own TCP window fills and its writes block, as on a real bottleneck.
+- outage (`down(mode)` ... `up()`; SIGUSR1 / SIGUSR2 to the process): the link is gone. New connections are
+  closed as soon as they are accepted (the air router's redials fail). `drop`: every open connection is cut
+  at once and what was in flight is lost (the ends see the link close, as when their keep-alive lease
+  expires); `hold`: open connections stay open and nothing moves until the link is back, then what waited
+  is delivered (a radio fade under TCP; the ends' leases decide whether they wait that long).
 
-Counters: bytes per direction (`up` = client→server, i.e. air→ground), lost segments, connections, and a
-timeline of (monotonic time, bytes) per direction for rates.
+Counters: bytes per direction (`up` = client→server, i.e. air→ground), lost segments, connections, connections
+refused during outages, the outages (monotonic start and end, mode), and a timeline of (monotonic time, bytes)
+per direction for rates.
 
 Run standalone (inside a network namespace, for instance):
     python tests/deploy/_link_emulator.py --listen 127.0.0.1:7000 --to 10.77.0.1:7447 --delay-ms 50 --loss 0.01 \
-        --rate-kbps 2000 --stats stats.json
-It writes its counters as JSON to --stats every second and on SIGTERM.
+        --rate-kbps 2000 --stats stats.json --outage-mode drop
+It writes its counters as JSON to --stats every second and on SIGTERM; SIGUSR1 takes the link down, SIGUSR2
+brings it back.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import queue
 import random
 import signal
 import socket
@@ -37,6 +45,9 @@ import time
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
+
+OutageMode = Literal["drop", "hold"]
 
 TCP_RTO_MIN_S = 0.2  # Linux's minimum retransmission timeout (include/net/tcp.h TCP_RTO_MIN)
 
@@ -52,6 +63,8 @@ class LinkStats:
     lost_up: int = 0
     lost_down: int = 0
     connections: int = 0
+    refused: int = 0
+    outages: list[tuple[float, float | None, str]] = field(default_factory=list)
     timeline_up: list[tuple[float, int]] = field(default_factory=list)
     timeline_down: list[tuple[float, int]] = field(default_factory=list)
 
@@ -65,6 +78,8 @@ class LinkStats:
             "lost_up": self.lost_up,
             "lost_down": self.lost_down,
             "connections": self.connections,
+            "refused": self.refused,
+            "outages": self.outages,
             "timeline_up": self.timeline_up[-20000:],
             "timeline_down": self.timeline_down[-20000:],
         }
@@ -140,6 +155,8 @@ class LinkEmulator:
         self._server.settimeout(0.2)
         self.port = int(self._server.getsockname()[1])
         self._stop = threading.Event()
+        self._link_up = threading.Event()
+        self._link_up.set()
         self._sockets: list[socket.socket] = []
         self._threads: list[threading.Thread] = []
 
@@ -159,6 +176,7 @@ class LinkEmulator:
     def stop(self) -> None:
         """Close every connection and the listening socket."""
         self._stop.set()
+        self.cut()  # wakes the threads blocked in recv (a close alone does not)
         for sock in [self._server, *self._sockets]:
             try:
                 sock.close()
@@ -175,6 +193,27 @@ class LinkEmulator:
             except OSError:
                 pass
 
+    def down(self, mode: OutageMode = "drop") -> None:
+        """Take the link down until `up()` (see the module docstring for the modes)."""
+        if mode not in ("drop", "hold"):
+            raise ValueError(f"outage mode {mode!r} must be 'drop' or 'hold'")
+        if not self._link_up.is_set():
+            return
+        self._link_up.clear()
+        with self._stats_lock:
+            self.stats.outages.append((time.monotonic(), None, mode))
+        if mode == "drop":
+            self.cut()
+
+    def up(self) -> None:
+        """Bring the link back after `down()`."""
+        if self._link_up.is_set():
+            return
+        with self._stats_lock:
+            start, _, mode = self.stats.outages[-1]
+            self.stats.outages[-1] = (start, time.monotonic(), mode)
+        self._link_up.set()
+
     def _accept(self) -> None:
         while not self._stop.is_set():
             try:
@@ -183,6 +222,11 @@ class LinkEmulator:
                 continue
             except OSError:
                 return
+            if not self._link_up.is_set():  # nothing reaches the other side during an outage
+                client.close()
+                with self._stats_lock:
+                    self.stats.refused += 1
+                continue
             try:
                 server = socket.create_connection(self.target, timeout=5.0)
             except OSError:
@@ -209,6 +253,8 @@ class LinkEmulator:
                     data = src.recv(65536)
                     if not data:
                         break
+                    while not self._link_up.wait(0.5) and not self._stop.is_set():
+                        pass  # held: what arrives waits for the link
                     now = time.monotonic()
                     for i in range(0, len(data), self.segment_bytes):
                         segment = data[i : i + self.segment_bytes]
@@ -243,6 +289,8 @@ class LinkEmulator:
                     wait = deliver_at - time.monotonic()
                     if wait > 0:
                         time.sleep(wait)
+                    while not self._link_up.wait(0.5) and not self._stop.is_set():
+                        pass  # held: nothing leaves until the link is back
                     dst.sendall(segment)
                     with cond:
                         pending.popleft()
@@ -303,6 +351,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rate-kbps", type=float, help="rate per direction, kbit/s")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--stats", type=Path, help="JSON file for the counters")
+    parser.add_argument(
+        "--outage-mode",
+        choices=["drop", "hold"],
+        default="drop",
+        help="what SIGUSR1 does to open connections (SIGUSR2 ends the outage)",
+    )
     args = parser.parse_args(argv)
     emulator = LinkEmulator(
         args.listen,
@@ -312,9 +366,15 @@ def main(argv: list[str] | None = None) -> int:
         rate_bps=args.rate_kbps * 1000 if args.rate_kbps else None,
         seed=args.seed,
     )
-    stop = threading.Event()
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(sig, lambda *_: stop.set())
+    # Signal handlers only queue a command: the main thread may hold the counters' lock when one runs.
+    commands: queue.SimpleQueue[str] = queue.SimpleQueue()
+    for sig, command in (
+        (signal.SIGTERM, "stop"),
+        (signal.SIGINT, "stop"),
+        (signal.SIGUSR1, "down"),
+        (signal.SIGUSR2, "up"),
+    ):
+        signal.signal(sig, lambda *_, c=command: commands.put(c))
     emulator.start()
     print(f"ready {emulator.port}", flush=True)
 
@@ -324,8 +384,21 @@ def main(argv: list[str] | None = None) -> int:
             tmp.write_text(json.dumps(emulator.snapshot()))
             tmp.replace(args.stats)
 
-    while not stop.wait(1.0):
-        dump()
+    next_dump = time.monotonic() + 1.0
+    while True:
+        try:
+            command = commands.get(timeout=max(0.0, next_dump - time.monotonic()))
+        except queue.Empty:
+            command = None
+        if command == "stop":
+            break
+        if command == "down":
+            emulator.down(args.outage_mode)
+        elif command == "up":
+            emulator.up()
+        if command in ("down", "up") or time.monotonic() >= next_dump:
+            dump()
+            next_dump = time.monotonic() + 1.0
     emulator.stop()
     dump()
     return 0
