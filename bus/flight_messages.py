@@ -127,3 +127,23 @@ def flight_frames(config: AtrConfig, args: argparse.Namespace) -> Iterator[Senso
         tuple(args.clutter_mesh),
     )
     return iter(fly(flight, config, args.lidar))
+
+
+def flight_frame_messages(
+    config: AtrConfig, args: argparse.Namespace, frames: Iterator[SensorFrame]
+) -> Iterator[tuple[SensorFrame, list[tuple[str, dict[str, Any]]]]]:
+    """Each frame of the flight the `add_flight_arguments` options describe with its (key, message)
+    pairs in publication order: the first frame's IMU batch (and every one with
+    `sim.nav_fix_every_frame`) carries the navigation state.
+    """
+    for index, frame in enumerate(frames):
+        messages = frame_messages(
+            frame,
+            args.uav,
+            args.scenario,
+            args.run,
+            args.seed,
+            index == 0 or config.sim.nav_fix_every_frame,
+            config.sim.present_min_visible_fraction,
+        )
+        yield frame, list(messages)

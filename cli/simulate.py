@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     """Simulate and record."""
     from atr.config import load_config
     from atr.io.mesh import vehicle_sources
-    from bus.flight_messages import flight_frames, frame_messages
+    from bus.flight_messages import flight_frame_messages, flight_frames
     from bus.recording import write_messages
 
     config = load_config(None, args.overrides)
@@ -47,18 +47,7 @@ def run(args: argparse.Namespace) -> int:
     )
     frames = flight_frames(config, args)
 
-    def messages():  # noqa: ANN202
-        for index, frame in enumerate(frames):
-            yield from frame_messages(
-                frame,
-                args.uav,
-                args.scenario,
-                args.run,
-                args.seed,
-                index == 0 or config.sim.nav_fix_every_frame,
-                config.sim.present_min_visible_fraction,
-            )
-
-    count = write_messages(args.out, messages())
+    messages = (m for _, sent in flight_frame_messages(config, args, frames) for m in sent)
+    count = write_messages(args.out, messages)
     print(f"wrote {count} messages to {args.out}")
     return 0

@@ -22,7 +22,7 @@ import time
 
 from bus import keys
 from bus.answers import AnswerWatch
-from bus.flight_messages import add_flight_arguments, flight_frames, frame_messages
+from bus.flight_messages import add_flight_arguments, flight_frame_messages, flight_frames
 from bus.service import effective_config, service_arguments, start_node
 
 log = logging.getLogger("atr")
@@ -44,21 +44,13 @@ def main(argv: list[str] | None = None) -> int:
         node.ready()
         time.sleep(1.0)  # let gossip connect every peer before the first frame
         last_stamp: int | None = None
-        for index, frame in enumerate(frames):
+        for frame, messages in flight_frame_messages(config, args, frames):
             if node.stopping:
                 break
             if args.pace == "realtime" and last_stamp is not None:
                 time.sleep(max(0.0, (frame.stamp_ns - last_stamp) * 1e-9))
             since, sent = watch.mark(), []
-            for key, message in frame_messages(
-                frame,
-                args.uav,
-                args.scenario,
-                args.run,
-                args.seed,
-                index == 0 or config.sim.nav_fix_every_frame,
-                config.sim.present_min_visible_fraction,
-            ):
+            for key, message in messages:
                 node.publish(key, message)
                 sent.append(key)
 
