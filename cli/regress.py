@@ -26,6 +26,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from bus.service import add_overrides_argument
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr regress`."""
@@ -47,9 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--work", type=Path, help="where replays are written (default: a temp dir)")
     parser.add_argument("--layout", default="local", help="layout name in compose/ or a file")
-    parser.add_argument(
-        "--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE"
-    )
+    add_overrides_argument(parser, "config override passed to every service (repeatable)")
 
 
 def replay_task(
@@ -77,27 +77,28 @@ def replay_task(
     }
 
 
-def _client(args: argparse.Namespace) -> Any:
-    from dask.distributed import Client, LocalCluster
-
-    from atr.errors import ConfigError
-
-    if args.scheduler:
-        try:
-            return Client(args.scheduler, timeout="30s")
-        except (OSError, TimeoutError) as exc:
-            raise ConfigError(f"cannot reach the Dask scheduler {args.scheduler}: {exc}") from exc
-    if args.workers < 1:
-        raise ConfigError(f"--workers {args.workers} must be >= 1")
-    cluster = LocalCluster(
-        n_workers=args.workers,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        memory_limit=0,  # the replays' memory is in their service processes, not the worker
-        silence_logs=40,
-    )
-    return Client(cluster)
+def _replay_all(
+    client: Any, entries: list[Any], args: argparse.Namespace, work: Path, tolerances: Any
+) -> list[dict[str, Any]]:
+    """Every corpus recording replayed as a task on the Dask client; their results in corpus order."""
+    futures = []
+    for entry in entries:
+        baseline = args.baseline / f"{entry.name}.mcap"
+        compare_with = str(baseline) if baseline.is_file() and not args.update else None
+        futures.append(
+            client.submit(
+                replay_task,
+                str(entry.path.resolve()),
+                str((work / f"{entry.name}.mcap").resolve()),
+                list(entry.overrides),
+                args.layout,
+                compare_with,
+                tolerances,
+                key=f"replay-{entry.name}",
+                pure=False,
+            )
+        )
+    return client.gather(futures)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -105,45 +106,27 @@ def run(args: argparse.Namespace) -> int:
     import json
     import shutil
     import tempfile
+    from contextlib import ExitStack
 
-    from atr.errors import AtrError
+    from atr.errors import AtrError, ConfigError
     from atr.regression.corpus import baseline_provenance, load_corpus
     from atr.regression.tolerances import load_tolerances
+    from atr.scaleout import dask_client
 
-    try:
-        entries = load_corpus(args.corpus, args.overrides)
-        tolerances = load_tolerances(args.tolerances)
-        work = args.work or Path(tempfile.mkdtemp(prefix="atr-regress-"))
-        work.mkdir(parents=True, exist_ok=True)
-        args.baseline.mkdir(parents=True, exist_ok=True)
-        client = _client(args)
-    except AtrError as exc:
-        print(f"atr regress: {exc}", file=sys.stderr)
-        return 2
-    try:
-        futures = []
-        for entry in entries:
-            baseline = args.baseline / f"{entry.name}.mcap"
-            compare_with = str(baseline) if baseline.is_file() and not args.update else None
-            futures.append(
-                client.submit(
-                    replay_task,
-                    str(entry.path.resolve()),
-                    str((work / f"{entry.name}.mcap").resolve()),
-                    list(entry.overrides),
-                    args.layout,
-                    compare_with,
-                    tolerances,
-                    key=f"replay-{entry.name}",
-                    pure=False,
-                )
-            )
-        results = client.gather(futures)
-    finally:
-        cluster = getattr(client, "cluster", None)
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    with ExitStack() as stack:
+        try:
+            entries = load_corpus(args.corpus, args.overrides)
+            tolerances = load_tolerances(args.tolerances)
+            work = args.work or Path(tempfile.mkdtemp(prefix="atr-regress-"))
+            work.mkdir(parents=True, exist_ok=True)
+            args.baseline.mkdir(parents=True, exist_ok=True)
+            if args.workers < 1:
+                raise ConfigError(f"--workers {args.workers} must be >= 1")
+            client = stack.enter_context(dask_client(args.scheduler, args.workers))
+        except AtrError as exc:
+            print(f"atr regress: {exc}", file=sys.stderr)
+            return 2
+        results = _replay_all(client, entries, args, work, tolerances)
     rows, suites, failed = [], [], False
     for entry, result in zip(entries, results, strict=True):
         verdict, detail, suite = _judge(entry, result, args)

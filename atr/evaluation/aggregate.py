@@ -168,3 +168,80 @@ def select(rows: Sequence[Mapping[str, Any]], **where: Any) -> list[Mapping[str,
         for r in rows
         if all(v(r.get(k)) if callable(v) else r.get(k) == v for k, v in where.items())
     ]
+
+
+TUNED_ON_TARGETS: tuple[str, ...] = ("t72", "leopard2", "m113", "hmmwv")
+"""The targets whose scenes (tuning seeds only) the matcher's choices were measured on; every other
+vehicle of the family is a held-out target (docs/evaluation/targets.md)."""
+
+
+def _confuser_fps(rows: Sequence[Mapping[str, Any]]) -> int:
+    """False positives that sit on another vehicle (details.json's ``false_positives_on``)."""
+    return sum(
+        n
+        for r in rows
+        for name, n in (r.get("false_positives_on") or {}).items()
+        if name != "elsewhere"
+    )
+
+
+def _target_row(key: Mapping[str, Any], pooled: Mapping[str, Any], fps_on_vehicles: int) -> dict:
+    scenes = int(pooled["scenes"])
+    return dict(key) | {
+        "tp": pooled["tp"],
+        "fp": pooled["fp"],
+        "fn": pooled["fn"],
+        "tn": pooled["tn"],
+        "f1": pooled["f1"],
+        "t_error_median_m": pooled["t_error_median_m"],
+        "scenes": scenes,
+        "fp_on_vehicles": fps_on_vehicles,
+        "fp_on_vehicles_share": fps_on_vehicles / scenes if scenes else float("nan"),
+    }
+
+
+def target_table(
+    rows: Sequence[Mapping[str, Any]], tuned_on: Sequence[str] = TUNED_ON_TARGETS
+) -> dict[str, list[dict[str, Any]]]:
+    """F1 per target x range x obliquity, per target, and pooled over the held-out targets.
+
+    Args:
+        rows: detailed rows of one arm (details.json), each with its "target".
+        tuned_on: targets the choices were measured on; the others are held out.
+
+    Returns:
+        {"cells": per (target, range_m, obliquity_deg), "targets": per target (its "held_out" flag
+        set), "held_out": pooled over the held-out targets per obliquity and overall (obliquity None)};
+        each row holds tp, fp, fn, tn, f1, t_error_median_m, scenes, and the false positives that sit
+        on another vehicle (count and share of the scenes).
+
+    """
+
+    def rows_of(**where: Any) -> list[Mapping[str, Any]]:
+        return select(rows, **where)
+
+    cells = []
+    for (t, r, o), pooled in sorted(
+        pool(rows, lambda x: (x["target"], x["range_m"], x["obliquity_deg"])).items()
+    ):
+        fps = _confuser_fps(rows_of(target=t, range_m=r, obliquity_deg=o))
+        cells.append(_target_row({"target": t, "range_m": r, "obliquity_deg": o}, pooled, fps))
+    targets = [
+        _target_row(
+            {"target": t, "held_out": t not in tuned_on}, pooled, _confuser_fps(rows_of(target=t))
+        )
+        for t, pooled in sorted(pool(rows, lambda x: x["target"]).items())
+    ]
+    held = [r for r in rows if r["target"] not in tuned_on]
+    held_out = [
+        _target_row(
+            {"obliquity_deg": o},
+            pooled,
+            _confuser_fps([r for r in held if o is None or r["obliquity_deg"] == o]),
+        )
+        for o, pooled in sorted(
+            (pool(held, lambda x: x["obliquity_deg"]) | pool(held, lambda x: None)).items(),
+            key=lambda item: (item[0] is None, item[0] or 0.0),
+        )
+    ]
+    return {"cells": cells, "targets": targets, "held_out": held_out}

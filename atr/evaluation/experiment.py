@@ -2,22 +2,23 @@
 
 `plan(request)` resolves a `Request` (what `atr eval` asks for) into flights, arms and the effective
 configuration; `execute(plan)` computes every (flight, arm) result that is not current in the cache, in-process
-(the services' functions, same seeds: identical detections; optionally in worker processes) or through the real
+(the services' functions, same seeds: identical detections; optionally on Dask workers) or through the real
 service graph (`bus.evaluation`, handed in by the caller: the bus is not this package's to import), and returns each run's SceneRecords.
 """
 
 from __future__ import annotations
 
 import json
-import multiprocessing
 import os
 import pickle
+import queue
 import time
-from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+import uuid
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from atr.baselines2d import (
     PAIRS,
@@ -29,23 +30,48 @@ from atr.config import AtrConfig, load_config, to_dict
 from atr.errors import ConfigError
 from atr.evaluation.io import code_version, jsonable, load_run, run_key, save_run
 from atr.evaluation.runner import (
+    DEFAULT_TARGET,
     Arm,
     Flight,
     SceneRecord,
     arm_config,
+    flight_frames,
     pair_descriptor,
     run_flight,
 )
 from atr.evaluation.timing import reference_workload_ms
 from atr.io.mesh import load_mesh, mesh_name, resolve_source
+from atr.scaleout import dask_client, host_slots, report, task_slots
 from atr.sim.noise import parse_noise
 from atr.sim.scenarios import TABLE_II
+from atr.sim.scenarios import scenario as scenario_preset
+from atr.sim.vehicles import VEHICLES
 from atr.template_store import TemplateStore, template_from_message
 
 REPO = Path(__file__).resolve().parents[2]
 # Runs a flight's 3D arms through the service graph: (flight, arms, plan, work folder) -> records per arm.
 ViaServices = Callable[["Flight", list["Arm"], "Plan", Path], dict["Arm", list["SceneRecord"]]]
 Progress = Callable[[str], None]
+
+
+class ArmProgress(Protocol):
+    """Where `execute` reports the scenes each arm computes (a display with a bar and an ETA per arm)."""
+
+    def start(self, scenes: Mapping[Arm, int]) -> None:
+        """The scenes each arm will compute in this invocation, before the first is computed."""
+
+    def advance(self, arm: Arm, scenes: int) -> None:
+        """``scenes`` more scenes of ``arm`` computed."""
+
+
+class _NoArmProgress:
+    """The display of a caller that wants none."""
+
+    def start(self, scenes: Mapping[Arm, int]) -> None:
+        del scenes
+
+    def advance(self, arm: Arm, scenes: int) -> None:
+        del arm, scenes
 
 
 @dataclass(frozen=True)
@@ -72,6 +98,10 @@ class Request:
     """Mesh file of the target (its template and its world)."""
     clutter_meshes: tuple[str, ...] = ()
     """Extra confuser meshes."""
+    targets: tuple[str, ...] = ()
+    """Vehicles of the family evaluated in turn as the target, each with the rest of the family as
+    confusers, in its world and among the templates (held-out targets, docs/evaluation/protocol.md);
+    empty: the one target of ``target_mesh``."""
     overrides: tuple[str, ...] = ()
     """`group.field=value` configuration overrides."""
     results: Path = REPO / "results"
@@ -108,16 +138,8 @@ def _flights(request: Request) -> list[Flight]:
         runs = range(1, len(TABLE_II[s][1]) + 1)
         for r in [r for r in (request.runs or runs) if r in runs]:
             flights.extend(
-                Flight(
-                    s,
-                    r,
-                    request.frames,
-                    request.seed,
-                    noise,
-                    request.target_mesh,
-                    request.clutter_meshes,
-                    request.every,
-                )
+                Flight(s, r, request.frames, request.seed, noise, target, clutter, request.every)
+                for target, clutter in _target_choices(request)
                 for noise in request.noises
             )
     if not flights:
@@ -129,6 +151,38 @@ def _flights(request: Request) -> list[Flight]:
             f"--every {request.every} samples scenes in-process; --via-services replays whole flights"
         )
     return flights
+
+
+WORLD_CONFUSERS: tuple[str, ...] = ("ifv", "truck6x6")
+"""The confusers every simulated world holds besides the target (atr.sim.world)."""
+
+
+def _target_choices(request: Request) -> list[tuple[str | None, tuple[str, ...]]]:
+    """(target mesh source, extra confusers) of each evaluated target: the request's one target, or
+    each of ``request.targets`` with every other vehicle of the family (the T-72 as None, the default
+    target, so that its flights are the reported evaluation's whenever the confusers are).
+    """
+    if not request.targets:
+        return [(request.target_mesh, request.clutter_meshes)]
+    if request.target_mesh is not None:
+        raise ConfigError(
+            f"give --targets or --target/--target-mesh {request.target_mesh}, not both"
+        )
+    unknown = [t for t in request.targets if t not in VEHICLES]
+    if unknown:
+        raise ConfigError(f"--targets {', '.join(unknown)}: expected vehicles of {list(VEHICLES)}")
+    if any(pipeline in PAIRS for pipeline in request.pipelines):
+        raise ConfigError(
+            "--targets evaluates the 3D pipelines; the 2D baseline crops its templates from one "
+            "target's flight"
+        )
+    choices = []
+    for target in dict.fromkeys(request.targets):
+        others = tuple(v for v in VEHICLES if v not in (target, *WORLD_CONFUSERS))
+        choices.append(
+            (None if target == DEFAULT_TARGET else target, others + request.clutter_meshes)
+        )
+    return choices
 
 
 def _arms(request: Request, config: AtrConfig) -> list[Arm]:
@@ -151,6 +205,8 @@ def plan(request: Request) -> Plan:
 
     """
     overrides = list(request.overrides)
+    if request.targets:  # every vehicle of the family is a template: the target and its confusers
+        overrides.append(f"pipeline.targets={json.dumps(list(VEHICLES))}")
     if request.target_mesh:
         overrides.append(
             f"pipeline.target_meshes=[{json.dumps(resolve_source(request.target_mesh))}]"
@@ -265,17 +321,59 @@ def _silent(text: str) -> None:
     del text
 
 
-def _work_in_process(
-    flight: Flight,
-    arms: list[Arm],
-    config: AtrConfig,
-    templates_3d: dict,
-    templates_2d: dict,
-    b2d: Any,
+@dataclass(frozen=True)
+class _Shared:
+    """What every flight's work needs besides its flight and arms (sent to each Dask worker once)."""
+
+    config: AtrConfig
+    templates_3d: dict[str, list[Any]]
+    templates_2d: dict[str, list[Any]]
+    b2d: Any  # Baseline2dConfig
+    version: str  # the code version the results are keyed with
+
+
+def _scenes(flight: Flight, gap: int) -> int:
+    """Scenes of a flight (frames that close a pair, sampled by ``flight.every``), without simulating it."""
+    n_frames = flight.frames or scenario_preset(flight.scenario, flight.run).n_frames
+    return sum(flight.is_scene(seq, gap) for seq in range(n_frames))
+
+
+def _reporting(
+    frames: Iterable[Any], flight: Flight, gap: int, on_scene: Callable[[], None]
+) -> Iterator[Any]:
+    """The frames, calling ``on_scene`` once every arm has processed a scene: `run_flight` asks for the
+    next frame only when it is done with the last one.
+    """
+    pending = False
+    for frame in frames:
+        if pending:
+            on_scene()
+        pending = flight.is_scene(frame.seq, gap)
+        yield frame
+    if pending:
+        on_scene()
+
+
+def _work(
+    flight: Flight, arms: list[Arm], shared: _Shared, on_scene: Callable[[], None]
 ) -> tuple[dict[Arm, list[SceneRecord]], float]:
-    """One flight through every arm, in a worker process; and the reference workload's time there."""
+    """One flight through every arm; and the reference workload's time, taken just before in the same
+    process (a worker's own, on a cluster).
+    """
     reference_ms = reference_workload_ms()
-    return run_flight(flight, arms, config, templates_3d, templates_2d, b2d), reference_ms
+    config = shared.config
+    # the frames run_flight simulates itself (same call), passed in only to see each scene finish
+    frames = flight_frames(flight, config, any(a.pipeline == "lidar" for a in arms))
+    out = run_flight(
+        flight,
+        arms,
+        config,
+        shared.templates_3d,
+        shared.templates_2d,
+        shared.b2d,
+        frames=_reporting(frames, flight, config.sfm.pair_gap_frames, on_scene),
+    )
+    return out, reference_ms
 
 
 def _share_the_cores(workers: int) -> None:
@@ -286,7 +384,8 @@ def _share_the_cores(workers: int) -> None:
     neighbour searches, OpenCV's semi-global matching): with two workers on two cores the threads of one
     wait for the other's, and a scene took 1.2-1.5 x its one-worker time (docs/performance.md). The
     thread count changes no result: each loop's iterations are independent, and OpenCV's matcher gives
-    the same disparities with 1-8 threads.
+    the same disparities with 1-8 threads. numba's count is the calling thread's own: call it in the
+    thread that does the work.
     """
     import cv2
     import numba
@@ -296,10 +395,37 @@ def _share_the_cores(workers: int) -> None:
     cv2.setNumThreads(threads)
 
 
+def _work_on_worker(
+    flight: Flight,
+    arms: list[Arm],
+    shared: _Shared,
+    slots: dict[str, int],
+    topic: str,
+    index: int,
+) -> tuple[dict[Arm, list[SceneRecord]], float]:
+    """A Dask task: one flight on its share of its host's cores, each finished scene sent to the client
+    as event ``index`` on ``topic``.
+
+    Raises:
+        ConfigError: the worker's `atr` sources are not the ones the results are keyed with.
+
+    """
+    here = code_version()
+    if (
+        here != shared.version
+    ):  # a cluster's worker with another checkout would mix code under one key
+        raise ConfigError(
+            f"a Dask worker runs atr code {here}, this evaluation {shared.version}: "
+            "every worker needs the same checkout"
+        )
+    _share_the_cores(task_slots(slots))
+    return _work(flight, arms, shared, lambda: report(topic, index))
+
+
 @dataclass
 class _Runs:
     """The runs an invocation computes, and what it has computed so far: each flight's finished arms are
-    saved to the run cache as they come, with a line of progress.
+    saved to the run cache as they come, with a line of progress; each finished scene moves its arms' bars.
     """
 
     plan: Plan
@@ -307,8 +433,35 @@ class _Runs:
     todo: dict[Flight, list[Arm]]
     results: dict[tuple[Flight, Arm], list[SceneRecord]]
     progress: Progress
+    bars: ArmProgress
     started: float = field(default_factory=time.monotonic)
     done: int = 0
+    counted: dict[Flight, int] = field(default_factory=dict)  # scenes shown on the bars
+    finished: set[Flight] = field(default_factory=set)
+
+    @property
+    def shared(self) -> _Shared:
+        """The plan's configuration and templates, as every flight's work takes them."""
+        p = self.plan
+        return _Shared(p.config, p.templates_3d, p.templates_2d, p.b2d, p.version)
+
+    def start(self) -> None:
+        """Show the scenes to compute per arm, and start the clock."""
+        gap = self.plan.config.sfm.pair_gap_frames
+        scenes: dict[Arm, int] = {arm: 0 for arm in self.plan.arms}
+        for flight, arms in self.todo.items():
+            for arm in arms:
+                scenes[arm] += _scenes(flight, gap)
+        self.bars.start({arm: n for arm, n in scenes.items() if n})
+        self.started = time.monotonic()
+
+    def scene_done(self, flight: Flight) -> None:
+        """One more scene of ``flight`` computed by every arm it runs (a late report is ignored)."""
+        if flight in self.finished:
+            return
+        self.counted[flight] = self.counted.get(flight, 0) + 1
+        for arm in self.todo[flight]:
+            self.bars.advance(arm, 1)
 
     def finish(
         self, flight: Flight, out: dict[Arm, list[SceneRecord]], reference_ms: float
@@ -329,6 +482,12 @@ class _Runs:
                 },
             )
             self.results[(flight, arm)] = records
+            unreported = len(records) - self.counted.get(
+                flight, 0
+            )  # late, or never sent (services)
+            if unreported:
+                self.bars.advance(arm, unreported)
+        self.finished.add(flight)
         self.done += 1
         elapsed = time.monotonic() - self.started
         eta = elapsed / self.done * (len(self.todo) - self.done)
@@ -344,27 +503,45 @@ def execute(
     plan_: Plan,
     *,
     jobs: int = 1,
+    scheduler: str | None = None,
     via_services: ViaServices | None = None,
     force: bool = False,
     progress: Progress = _silent,
+    bars: ArmProgress | None = None,
 ) -> dict[tuple[Flight, Arm], list[SceneRecord]]:
     """Compute (or load) every (flight, arm) result of a plan.
 
+    Flights run in this process (``jobs`` 1, no ``scheduler``), or as tasks on Dask (`atr.scaleout`): a
+    LocalCluster of ``jobs`` worker processes, or the cluster at ``scheduler``. Each task is one flight
+    through every arm, on its share of its host's cores; the records are the same either way, and each
+    flight's are saved to the run cache as it finishes (here, where the cache is).
+
     Args:
         plan_: what to evaluate.
-        jobs: worker processes (flights run in parallel; in-process runs only).
+        jobs: local worker processes (flights run in parallel; in-process runs only).
+        scheduler: address of a Dask scheduler (``tcp://HOST:8786``) whose workers run the flights.
         via_services: when given (`bus.evaluation.run_via_services`), the 3D arms run through the
             real service graph from recordings, flight by flight, with this function.
         force: recompute runs even when a current result exists.
         progress: called with one line of progress at a time.
+        bars: shown the scenes each arm computes, scene by scene (flight by flight via the services).
 
     Returns:
         (flight, arm) -> SceneRecords.
 
     Raises:
-        AtrError: the service graph failed on a flight (via_services).
+        SchedulerError: ``scheduler`` did not answer.
+        ConfigError: ``jobs`` < 1, or a scheduler with via_services.
+        AtrError: the service graph failed on a flight (via_services), or a flight raised one.
 
     """
+    if jobs < 1:
+        raise ConfigError(f"--jobs {jobs} must be >= 1")
+    if scheduler and via_services is not None:
+        raise ConfigError(
+            f"--scheduler {scheduler} runs in-process flights on a cluster; "
+            "--via-services replays them here through the service graph"
+        )
     keys = {
         (flight, arm): _key(plan_, flight, arm, via_services is not None)
         for flight in plan_.flights
@@ -378,16 +555,32 @@ def execute(
     )
     if not todo:
         return results
-    _templates_3d(plan_)
-    _templates_2d(plan_, progress)
-    runs = _Runs(plan_, keys, todo, results, progress)
-    if via_services is not None:
-        _run_via_services(runs, via_services)
-    elif jobs <= 1:
-        _run_here(runs)
-    else:
-        _run_in_workers(runs, jobs)
+    with ExitStack() as stack:
+        client = None
+        if via_services is None and (scheduler or jobs > 1):
+            # before the templates: an unreachable scheduler is said at once
+            client = stack.enter_context(dask_client(scheduler, min(jobs, len(todo))))
+            progress(_where(client, scheduler, len(todo)))
+        _templates_3d(plan_)
+        _templates_2d(plan_, progress)
+        runs = _Runs(plan_, keys, todo, results, progress, bars or _NoArmProgress())
+        if via_services is not None:
+            _run_via_services(runs, via_services)
+        elif client is None:
+            _run_here(runs)
+        else:
+            _run_on_dask(runs, client)
     return results
+
+
+def _where(client: Any, scheduler: str | None, flights: int) -> str:
+    workers = client.scheduler_info()["workers"]
+    threads = sum(int(w["nthreads"]) for w in workers.values())
+    where = f"the Dask scheduler {scheduler}" if scheduler else "a Dask LocalCluster"
+    return (
+        f"{flights} flights on {where}: {len(workers)} worker processes, "
+        f"{threads} flights at a time"
+    )
 
 
 def _current(
@@ -411,36 +604,49 @@ def _current(
 
 def _run_via_services(runs: _Runs, via_services: ViaServices) -> None:
     workdir = runs.plan.results / "services"
+    runs.start()
     for flight, arms in runs.todo.items():
         reference_ms = reference_workload_ms()
         runs.finish(flight, via_services(flight, arms, runs.plan, workdir), reference_ms)
 
 
 def _run_here(runs: _Runs) -> None:
-    p = runs.plan
+    shared = runs.shared
+    runs.start()
     for flight, arms in runs.todo.items():
-        out = _work_in_process(flight, arms, p.config, p.templates_3d, p.templates_2d, p.b2d)
-        runs.finish(flight, *out)
+        runs.finish(flight, *_work(flight, arms, shared, lambda f=flight: runs.scene_done(f)))
 
 
-def _run_in_workers(runs: _Runs, jobs: int) -> None:
-    # spawn, not fork: the parent already runs OpenMP/numba threads (template building), and a fork of such a
-    # process is unsafe (GNU OpenMP terminates it). Fewer flights than jobs: fewer workers share the cores.
-    workers = min(jobs, len(runs.todo))
-    with ProcessPoolExecutor(
-        max_workers=jobs,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=_share_the_cores,
-        initargs=(workers,),
-    ) as pool:
-        p = runs.plan
-        pending = {
-            pool.submit(
-                _work_in_process, flight, arms, p.config, p.templates_3d, p.templates_2d, p.b2d
-            ): flight
-            for flight, arms in runs.todo.items()
-        }
-        while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in finished:
-                runs.finish(pending.pop(future), *future.result())
+def _run_on_dask(runs: _Runs, client: Any) -> None:
+    """One task per flight; the client saves each flight's records as its task finishes, and moves the
+    bars as the workers report scenes. The plan's templates go to each worker once.
+    """
+    events: queue.Queue[tuple[str, Any]] = queue.Queue()  # filled from the client's threads
+    tag = uuid.uuid4().hex[:8]  # a cluster may serve several evaluations at once
+    topic = f"atr-eval-{tag}"
+    client.subscribe_topic(topic, lambda event: events.put(("scene", event[1])))
+    shared = client.scatter(runs.shared, hash=False)
+    slots = host_slots(client)
+    flights = list(runs.todo)
+    pending: dict[str, Flight] = {}
+    for index, (flight, arms) in enumerate(runs.todo.items()):
+        future = client.submit(
+            _work_on_worker,
+            flight,
+            arms,
+            shared,
+            slots,
+            topic,
+            index,
+            key=f"atr-eval-s{flight.scenario}r{flight.run}-{flight.noise}-{index}-{tag}",
+            pure=False,
+        )
+        future.add_done_callback(lambda done: events.put(("done", done)))
+        pending[future.key] = flight
+    runs.start()
+    while pending:
+        kind, what = events.get()
+        if kind == "scene":
+            runs.scene_done(flights[what])
+        else:
+            runs.finish(pending.pop(what.key), *what.result())
