@@ -268,45 +268,17 @@ def split(tmp_path_factory: pytest.TempPathFactory) -> Split:
         link = Link(hosts, folder)
         link.start()
         common = ["--var", f"deploy={deploy.root}", *SMALL_CAMERA]
-        ground = hosts.start(
-            "ground",
-            [
-                PY,
-                "-m",
-                "cli.main",
-                "up",
-                "split",
-                "--host",
-                "ground",
-                "--var",
-                f"out={recording}",
-                *common,
-            ],
-            env=_env(),
-            cwd=REPO,
-            stdout=(folder / "ground.log").open("wb"),
-            stderr=subprocess.STDOUT,
-        )
-        air = hosts.start(
-            "air",
-            [
-                PY,
-                "-m",
-                "cli.main",
-                "up",
-                "split",
-                "--host",
-                "air",
-                "--no-source",
-                "--var",
-                f"air_out={folder / 'air.mcap'}",
-                *common,
-            ],
-            env=_env(),
-            cwd=REPO,
-            stdout=(folder / "air.log").open("wb"),
-            stderr=subprocess.STDOUT,
-        )
+
+        def up(host: str, *args: str) -> subprocess.Popen:
+            """`atr up split` for one host in its namespace, its output in <host>.log."""
+            command = [PY, "-m", "cli.main", "up", "split", "--host", host, *args, *common]
+            log = (folder / f"{host}.log").open("wb")
+            return hosts.start(
+                host, command, env=_env(), cwd=REPO, stdout=log, stderr=subprocess.STDOUT
+            )
+
+        ground = up("ground", "--var", f"out={recording}")
+        air = up("air", "--no-source", "--var", f"air_out={folder / 'air.mcap'}")
         watch = Watch(hosts, deploy.zenoh("split-air"))
         result = Split(hosts, deploy, link, ground, air, watch, folder, recording)
         result.wait_ready()
