@@ -37,10 +37,12 @@ from atr.evaluation.aggregate import (
     compactness,
     pool,
     select,
+    target_table,
 )
 from atr.evaluation.timing import REFERENCE_WORKLOAD
 
 REPO = Path(__file__).resolve().parents[1]
+PAPER_TARGET = "t72"  # the paper's target; the paper's sections read its rows
 PIPELINE_ORDER = ("gftt-sfm", "surf-sfm", "sgm-sfm", "lidar", "2d-1", "2d-2", "2d-3", "2d-4")
 NAMES = {
     "gftt-sfm": "SfM GFTT",
@@ -996,6 +998,60 @@ def _requirements_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> 
     return parts
 
 
+def _paper_rows(details: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+    """The rows the paper's sections read: the T-72's when the result holds several targets."""
+    if len({r.get("target", PAPER_TARGET) for r in details}) <= 1:
+        return list(details)
+    return [r for r in details if r.get("target", PAPER_TARGET) == PAPER_TARGET]
+
+
+def _targets_section(details: Sequence[Mapping[str, Any]]) -> list[str]:
+    """F1 per target x range x obliquity and pooled over the held-out targets (`atr eval --targets`)."""
+    clean = select(details, noise="none")
+    if len({r.get("target", PAPER_TARGET) for r in clean}) <= 1:
+        return []
+    parts = ["", "## Held-out targets (docs/evaluation/protocol.md)"]
+    for arm in sorted({arm_label(r) for r in clean}, key=_arm_sort):
+        table = target_table([r for r in clean if arm_label(r) == arm])
+        cells = sorted({(c["range_m"], c["obliquity_deg"]) for c in table["cells"]})
+        rows = []
+        for t in table["targets"]:
+            f1 = {
+                (c["range_m"], c["obliquity_deg"]): c["f1"]
+                for c in table["cells"]
+                if c["target"] == t["target"]
+            }
+            rows.append(
+                [t["target"] + ("" if t["held_out"] else " (tuned on)")]
+                + [_num(f1.get(c)) for c in cells]
+                + [
+                    f"{_num(t['f1'])} ({t['tp']}/{t['fp']}/{t['fn']})",
+                    _pct(t["fp_on_vehicles_share"]),
+                    _num(t["t_error_median_m"]),
+                ]
+            )
+        for h in table["held_out"]:
+            where = "all" if h["obliquity_deg"] is None else f"{h['obliquity_deg']:.0f}°"
+            rows.append(
+                [f"held out, {where}"]
+                + ["" for _ in cells]
+                + [
+                    f"{_num(h['f1'])} ({h['tp']}/{h['fp']}/{h['fn']})",
+                    _pct(h["fp_on_vehicles_share"]),
+                    _num(h["t_error_median_m"]),
+                ]
+            )
+        header = ["target", *(f"{r:.0f} m {o:.0f}°" for r, o in cells)]
+        parts += [
+            "",
+            f"**{arm}**: F1 per target, range and obliquity; each target with the rest of the family "
+            "as confusers.",
+            "",
+            _table([*header, "F1 (TP/FP/FN)", "FP on vehicles", "T_error m"], rows),
+        ]
+    return parts
+
+
 def build_report(
     details: Sequence[Mapping[str, Any]],
     configs: Sequence[Mapping[str, Any]],
@@ -1006,7 +1062,7 @@ def build_report(
     recorded flight `example` when given. Each section is a function of its own, in the report's order.
     """
     figs = Figures(out)
-    clean = select(details, noise="none")
+    clean = select(_paper_rows(details), noise="none")
     parts = [
         *_header_section(clean, details, configs, figs),
         *_range_section(clean, figs),
@@ -1015,8 +1071,9 @@ def build_report(
         *_tracks_section(clean),
         *_terror_section(clean, figs),
         *_compactness_section(clean, figs),
-        *_noise_section(details, figs),
+        *_noise_section(_paper_rows(details), figs),
         *_requirements_section(clean, figs),
+        *_targets_section(details),
     ]
     discussion = out / "discussion.md"
     if discussion.exists():

@@ -16,7 +16,9 @@ from cli.report import (
     _differences_section,
     _examples_section,
     _false_positives_section,
+    _paper_rows,
     _scene_outcomes,
+    _targets_section,
     _time_vs_reference,
     _tracks_section,
     example_scenes,
@@ -207,3 +209,29 @@ def test_tracks_are_pooled_per_arm_beside_the_per_scene_f1_and_run_by_run():
     assert per_run == ["sgm-sfm/shot", "94.7% / 88.9%", "100.0% / 94.7%"]
     assert "| lidar" not in text
     assert _tracks_section(rows[2:]) == []
+
+
+def test_a_result_of_several_targets_gets_a_per_target_table_and_paper_sections_read_the_t72():
+    def row(target: str, run: int, outcomes: list[str]) -> dict:
+        tp = outcomes.count("tp")
+        return {
+            **_run_row("sgm-sfm", "shot", run, outcomes),
+            "target": target,
+            "noise": "none",
+            "range_m": 50.0,
+            "obliquity_deg": 15.0 * run,
+            "t_errors_m": [0.1] * tp,
+            "false_positives_on": {"t72": outcomes.count("fp")},
+        }
+
+    rows = [row("t72", 1, ["tp"] * 4), row("m109", 1, ["tp", "fp"]), row("m109", 2, ["fn"] * 2)]
+    assert [r["target"] for r in _paper_rows(rows)] == ["t72"]
+    assert _paper_rows(rows[1:]) == rows[1:]  # one target, whichever: all of its rows
+    text = "\n".join(_targets_section(rows))
+    lines = [line for line in text.splitlines() if line.startswith("| ") and "---" not in line]
+    table = {line.strip("| ").split(" | ")[0]: line.strip("| ").split(" | ")[1:] for line in lines}
+    assert "m109" in table and "t72 (tuned on)" in table
+    # the held-out pool is the M109's alone: 1/1/2 -> F1 2/(2+1+2); one scene of 4 has its FP on a vehicle
+    assert table["held out, all"][-3].startswith("0.40 (1/1/2)")
+    assert table["held out, all"][-2] == "25.0%"
+    assert _targets_section(rows[:1]) == []  # a single target: no section
