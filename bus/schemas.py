@@ -82,10 +82,10 @@ def _check_ndarray(validator: Any, spec: dict[str, Any], instance: Any, schema: 
     bound = spec.get("max_abs")
     if bound is not None and instance.size:
         # Finite but absurd values (1e30 m) would overflow the grids and integer casts downstream.
-        low, high = instance.min(), instance.max()
+        low, high = float(instance.min()), float(instance.max())  # a float16 cannot hold the bound
         if low < -bound or high > bound:
             worst = low if -low > high else high
-            index = tuple(int(i) for i in np.argwhere(instance == worst)[0])
+            index = tuple(int(i) for i in np.argwhere(instance == instance.dtype.type(worst))[0])
             yield jsonschema.ValidationError(
                 f"value {float(worst):g} at index {list(index)} is outside the allowed range "
                 f"[{-bound:g}, {bound:g}]"

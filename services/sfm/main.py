@@ -26,7 +26,7 @@ from atr.errors import InputError
 from atr.sfm import reconstruct
 from atr.sfm.pairing import Answer, FramePairer, Missing, NoPartner
 from bus import keys
-from bus.clouds import compact_points
+from bus.clouds import compact_cloud
 from bus.node import Message
 from bus.service import effective_config, service_arguments, start_node
 
@@ -61,6 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     args = service_arguments("sfm", __doc__, keeps="journal").parse_args(argv)
     full_config = effective_config(args)
     config, compact = full_config.sfm, full_config.pipeline.compact_clouds
+    leaf_m = full_config.recognition.template.resolution_m  # the matcher's subsampling
     source = f"sfm-{config.matcher}"
     pairer = FramePairer(config.pair_gap_frames)
     inputs = [keys.imu(args.uav), keys.image(args.uav), keys.relative_pose(args.uav)]
@@ -68,9 +69,9 @@ def main(argv: list[str] | None = None) -> int:
         node.ready()
 
         def publish_cloud(message: dict) -> None:
-            if compact:  # the radio link's form (bus/clouds.py)
-                points = message.pop("points_m")
-                message |= compact_points(points)
+            if compact:  # the radio link's form: what the matcher uses, quantised (bus/clouds.py)
+                points, sigma = message.pop("points_m"), message.pop("sigma_m")
+                message |= compact_cloud(points, sigma, leaf_m)
             node.publish(keys.sfm_cloud(args.uav), message)
 
         def empty(image: dict, frames: list[int], viewpoint: np.ndarray, note: str) -> None:

@@ -1,11 +1,13 @@
-"""Compact cloud positions: half the bytes, error within half a quantisation step, same decoded form."""
+"""Compact clouds: only the points the matcher uses, half the bytes a point, positions within half a
+quantisation step, sigma within float16's relative error, the same decoded form."""
 
 import numpy as np
 import pytest
 
 from atr.errors import SchemaError
+from atr.recognition.steps import uniform_subsample
 from bus import codec
-from bus.clouds import cloud_points, compact_points
+from bus.clouds import cloud_points, compact_cloud, compact_points
 
 
 def test_compact_cloud_round_trip_error_is_within_half_a_step():
@@ -43,3 +45,42 @@ def test_a_cloud_needs_one_of_the_two_forms():
         codec.encode(
             "PointCloud", base | {"points_q": np.zeros((2, 3), np.uint16)}
         )  # no origin/step
+
+
+def test_compact_sigma_keeps_its_relative_error_and_halves_its_bytes():
+    rng = np.random.default_rng(5)
+    points = rng.uniform(-50, 50, (5_000, 3))
+    sigma = rng.lognormal(-2.0, 1.5, 5_000)  # millimetres to metres, as SfM's depth sigma
+    sigma[:2] = (0.0, 1e5)  # a perfect point, and one that says nothing
+    base = {"stamp_ns": 1, "seq": 0, "version": 1, "source": "sfm-sgm", "frame_seqs": [0, 1]}
+    message = base | compact_cloud(points, sigma, leaf_m=1e-3)  # no two points share a voxel
+    decoded = codec.decode("PointCloud", codec.encode("PointCloud", message))
+    sent = np.asarray(decoded["sigma_m"], np.float64)
+    assert decoded["sigma_m"].dtype == np.float16 and len(sent) == len(points)
+    assert sent.min() == 0.0 and np.isfinite(sent).all() and sent.max() > 6e4  # clipped, never inf
+    expected = sigma[uniform_subsample(points, 1e-3)]  # the order the matcher sees
+    told = expected > 0
+    assert (np.abs(sent - np.minimum(expected, 65504.0))[told] / expected[told]).max() <= 2.0**-11
+    float32 = base | compact_points(points) | {"sigma_m": sigma.astype(np.float32)}
+    saved = len(codec.encode("PointCloud", float32)) - len(codec.encode("PointCloud", message))
+    assert saved >= 2 * len(points)  # two bytes a point
+
+
+def test_the_air_sends_what_the_matcher_would_keep_of_a_dense_cloud():
+    rng = np.random.default_rng(8)
+    leaf_m = 0.15
+    # dense: 7 points a voxel
+    points = rng.uniform([-3, -3, 0], [3, 3, 0.3], (60_000, 3)).astype(np.float32)
+    sigma = rng.uniform(0.01, 0.5, len(points))
+    base = {"stamp_ns": 1, "seq": 0, "version": 1, "source": "sfm-sgm", "frame_seqs": [0, 1]}
+    message = base | compact_cloud(points, sigma, leaf_m)
+    decoded = codec.decode("PointCloud", codec.encode("PointCloud", message))
+    sent = cloud_points(decoded).astype(np.float64)
+    kept = uniform_subsample(points.astype(np.float64), leaf_m)
+    assert len(sent) == len(kept) < len(points) / 2
+    # the matcher's points, in its order, to within the quantisation
+    np.testing.assert_allclose(sent, points[kept], atol=float(decoded["step_m"].max()))
+    np.testing.assert_allclose(decoded["sigma_m"], sigma[kept], rtol=2.0**-11)
+    # and its own subsampling of what arrives keeps (nearly) all of it: points a quantisation step
+    # from a voxel face may cross it
+    assert len(uniform_subsample(sent, leaf_m)) >= 0.99 * len(sent)
