@@ -5,6 +5,11 @@ constructor. This module gathers them and applies overrides written as `group.fi
 `--set` on the command line, by the layouts in `compose/`, and by YAML files (nested maps).
 
     config = load_config(overrides=["sfm.matcher=surf", "recognition.descriptor=fpfh"])
+
+The SfM defaults to the arm that measures best on held-out targets: dense matching (`sfm.matcher=sgm`,
+ours; docs/evaluation). A preset is a named list of overrides, given as `preset=NAME` among them (`--preset
+paper` on the command line, `preset: paper` in a YAML file); it applies where it stands, so a later
+override refines it. `preset=paper` is the paper's sparse GFTT/KLT SfM, the evaluation's `gftt-sfm` arm.
 """
 
 from __future__ import annotations
@@ -64,10 +69,22 @@ class AtrConfig:
     sim: SimConfig = field(default_factory=SimConfig)
     # The camera-IMU extrinsic is a property of the camera head; by default it is the simulated head's.
     imu: ImuConfig = field(default_factory=lambda: ImuConfig(T_imu_cam=SimConfig().T_imu_cam))
-    sfm: SfmConfig = field(default_factory=SfmConfig)
+    # Dense SfM, the arm that measures best on held-out targets; PRESETS["paper"] is the paper's.
+    sfm: SfmConfig = field(default_factory=lambda: SfmConfig(matcher="sgm"))
     recognition: RecognitionConfig = field(default_factory=RecognitionConfig)
     baselines2d: Baseline2dConfig = field(default_factory=Baseline2dConfig)
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
+
+
+PRESETS: dict[str, tuple[str, ...]] = {
+    "dense": ("sfm.matcher=sgm",),
+    "paper": ("sfm.matcher=gftt",),
+}
+"""Named override lists (`preset=NAME`). "dense": the default, semi-global matching of the pair rectified
+with the known pose (ours). "paper": the paper's sparse GFTT/KLT SfM (§II-B-1), exactly as the evaluation's
+gftt-sfm arm runs it. What that arm adds to
+the paper's text keeps its own switch (the pose-aided KLT pass: `sfm.klt_aided_pyramid_levels=0`;
+docs/sfm.md)."""
 
 
 def _coerce(value: Any, annotation: Any, where: str) -> Any:
@@ -124,16 +141,27 @@ def _with(config: Any, path: list[str], value: Any, where: str) -> Any:
 
 
 def apply_overrides(config: Any, overrides: list[str] | dict[str, Any]) -> Any:
-    """A copy of dataclass `config` with `a.b=value` overrides (values parsed as YAML scalars/lists).
+    """A copy of dataclass `config` with `a.b=value` overrides (values parsed as YAML scalars/lists);
+    `preset=NAME` applies the overrides of ``PRESETS[NAME]`` where it stands.
 
     Raises:
-        ConfigError: unknown field, value of the wrong type, or a value its group's validation refuses.
+        ConfigError: unknown field or preset, value of the wrong type, or a value its group's
+            validation refuses.
 
     """
     items = overrides.items() if isinstance(overrides, dict) else [_split(o) for o in overrides]
     for dotted, value in items:
-        config = _with(config, dotted.split("."), value, dotted)
+        if dotted == "preset":
+            config = apply_overrides(config, list(_preset(value)))
+        else:
+            config = _with(config, dotted.split("."), value, dotted)
     return config
+
+
+def _preset(name: Any) -> tuple[str, ...]:
+    if not isinstance(name, str) or name not in PRESETS:
+        raise ConfigError(f"preset {name!r} is unknown; expected one of {sorted(PRESETS)}")
+    return PRESETS[name]
 
 
 def _split(override: str) -> tuple[str, Any]:

@@ -31,12 +31,28 @@ def add_zenoh_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
+class _Preset(argparse.Action):
+    """`--preset NAME` as the override `preset=NAME`, in its place among the --set (a later --set
+    refines it); load_config checks the name, so the parsers need not import the config tree.
+    """
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: Any,
+        option_string: str | None = None,
+    ) -> None:
+        overrides = list(getattr(namespace, self.dest, None) or [])
+        setattr(namespace, self.dest, [*overrides, f"preset={values}"])
+
+
 def add_overrides_argument(
     parser: argparse.ArgumentParser,
     help_text: str = "override one config field, e.g. --set sfm.matcher=surf (repeatable)",
 ) -> None:
-    """`--set GROUP.FIELD=VALUE` (repeatable) into `args.overrides`, as atr/config.py's load_config
-    reads them.
+    """`--set GROUP.FIELD=VALUE` (repeatable) and `--preset NAME` into `args.overrides`, in the order
+    given, as atr/config.py's load_config reads them.
     """
     parser.add_argument(
         "--set",
@@ -45,6 +61,14 @@ def add_overrides_argument(
         default=[],
         metavar="GROUP.FIELD=VALUE",
         help=help_text,
+    )
+    parser.add_argument(
+        "--preset",
+        dest="overrides",
+        action=_Preset,
+        metavar="NAME",
+        help="a named set of overrides (atr/config.py PRESETS), where it stands among the --set: "
+        "'paper' is the paper's sparse GFTT/KLT SfM, 'dense' the default (dense SfM, SGM)",
     )
 
 

@@ -1,6 +1,7 @@
 """Replay every recording of a corpus through the current code and diff each against its baseline.
 
-Each recording (`CORPUS_DIR/NAME.mcap`, replayed with the config groups of `NAME.yml` if present) goes
+Each recording (`CORPUS_DIR/NAME.mcap`, replayed with the current defaults, then the config groups of `NAME.yml`
+if present: every setting its baseline was made with that is not a default, e.g. `sfm: {matcher: gftt}`) goes
 through the service graph in lock-step as `atr run` does, on its own hub port; the replay is compared with
 `BASELINE/NAME.mcap` as `atr diff` compares. The replays are tasks on Dask distributed: a LocalCluster of
 worker processes (one per 2 cores: each replay starts a whole service graph) or the scheduler at

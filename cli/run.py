@@ -9,6 +9,7 @@ run's F1 (§III-C, judged as `atr eval` judges it) is printed then.
 Examples:
     atr run flight.mcap --out result.mcap
     atr run flight.mcap --out fpfh.mcap --set recognition.descriptor=fpfh
+    atr run flight.mcap --out paper.mcap --preset paper
     atr run flight.mcap --out surf.mcap --set sfm.matcher=surf --layout local
 
 """

@@ -23,14 +23,13 @@ from pathlib import Path
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr simulate`."""
     from bus.flight_messages import add_flight_arguments
+    from bus.service import add_overrides_argument
     from cli.world import add_vehicle_arguments
 
     add_flight_arguments(parser)
     add_vehicle_arguments(parser)
     parser.add_argument("--uav", default="uav1", help="vehicle id in the keys")
-    parser.add_argument(
-        "--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE"
-    )
+    add_overrides_argument(parser)
     parser.add_argument("--out", type=Path, required=True, help="output MCAP file")
 
 

@@ -1,4 +1,5 @@
-"""`atr demo` picks the scenario's 30 deg run when --run is not given."""
+"""`atr demo` picks the scenario's 30 deg run when --run is not given, and flies the default (dense) arm
+unless --preset says otherwise."""
 
 from __future__ import annotations
 
@@ -17,3 +18,20 @@ def test_demo_run_flies_the_medium_obliquity_run_of_every_scenario(number: int) 
 
 def test_demo_run_of_scenario_1_is_the_readme_demo() -> None:
     assert demo_run(1) == 3
+
+
+def test_demo_flies_the_dense_arm_unless_the_paper_preset_is_asked_for() -> None:
+    """The demo's services get `--preset` as given, before the overrides that fly another target."""
+    from atr.config import load_config
+    from cli.demo import vehicle_options
+    from cli.main import build_parser
+
+    parser = build_parser("demo")
+    _, overrides = vehicle_options(parser.parse_args(["demo"]))
+    assert load_config(None, overrides).sfm.matcher == "sgm"
+    argv = ["demo", "--preset", "paper", "--target", "m109", "--set", "sfm.klt_window_px=15"]
+    _, overrides = vehicle_options(parser.parse_args(argv))
+    assert overrides[:2] == ["preset=paper", "sfm.klt_window_px=15"]
+    config = load_config(None, overrides)
+    assert config.sfm.matcher == "gftt" and config.sfm.klt_window_px == 15
+    assert "m109" in config.pipeline.targets

@@ -21,7 +21,10 @@ pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 
 def replay(source: Path, out: Path, *overrides: str) -> Path:
-    done = atr("run", str(source), "--out", str(out), *SMALL_CAMERA, *overrides)
+    # the corpus was recorded with the paper's sparse SfM (recordings/NAME.yml pins it too)
+    done = atr(
+        "run", str(source), "--out", str(out), *SMALL_CAMERA, "--preset", "paper", *overrides
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     return out
 

@@ -1,8 +1,9 @@
 """`atr run` and `atr up` as a user runs them (the real command in a subprocess): every argument is checked
-before any process starts, and a relative path is the user's."""
+before any process starts, and a relative path is the user's; `--preset` where `--set` is taken."""
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import sys
 import time
@@ -88,6 +89,45 @@ def test_bad_paths_and_values_are_refused_naming_them(
         ["run", str(recording), "--out", "o.mcap", "--answer-timeout", "0"], "--answer-timeout 0"
     )
     assert not (tmp_path / "o.logs").exists()
+
+
+@pytest.mark.parametrize("command", ["run", "demo", "simulate", "regress", "up", "service"])
+def test_preset_is_one_switch_in_its_place_among_the_sets(command: str) -> None:
+    """Every command that takes --set takes --preset, passed on as the override `preset=NAME` in the order
+    given (atr/config.py applies it there: a later --set refines it), and its help names every preset."""
+    from atr.config import PRESETS
+    from bus.service import service_arguments
+    from cli.main import build_parser
+
+    if command == "service":  # what `atr service NAME ARGS` and the layouts hand to every service
+        parser, needed = service_arguments("sfm", None), []
+    else:
+        subparsers = next(
+            a for a in build_parser(command)._actions if isinstance(a, argparse._SubParsersAction)
+        )
+        parser = subparsers.choices[command]
+        needed = {
+            "run": ["x.mcap", "--out", "o.mcap"],
+            "simulate": ["--out", "o.mcap"],
+            "regress": ["corpus", "--baseline", "b"],
+        }.get(command, [])
+    argv = [*needed, "--set", "a.b=1", "--preset", "paper", "--set", "c=2"]
+    assert parser.parse_args(argv).overrides == ["a.b=1", "preset=paper", "c=2"]
+    assert parser.parse_args(needed).overrides == []
+    usage = parser.format_help()
+    assert "--preset" in usage and all(f"'{name}'" in usage for name in PRESETS)
+
+
+def test_an_unknown_preset_is_refused_naming_the_choices(
+    tmp_path: Path, recording: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    from cli.main import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", str(recording), "--out", "o.mcap", "--preset", "fastest"]) == 1
+    stderr = capsys.readouterr().err
+    assert "fastest" in stderr and "paper" in stderr and "dense" in stderr, stderr
+    assert not (tmp_path / "o.logs").exists()  # no service was started
 
 
 @pytest.mark.e2e
