@@ -10,7 +10,6 @@ is not in the checkout are skipped.
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import time
@@ -22,6 +21,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # Open3D's reference FPFH on one 
 import numpy as np  # noqa: E402
 
 from atr.features3d import DESCRIPTOR_NAMES, describe, estimate_normals, is_available  # noqa: E402
+from cli._args import script_parser  # noqa: E402
 
 # the closed bumpy surface of the descriptor property tests
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "features3d"))
@@ -70,12 +70,10 @@ def open3d_fpfh(points: np.ndarray, normals: np.ndarray, keypoints: np.ndarray, 
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    ap.add_argument("--runs", type=int, default=7)
-    ap.add_argument("--points", type=int, default=10_000)
-    ap.add_argument("--keypoints", type=int, default=1_000)
+    ap = script_parser(__doc__)
+    ap.add_argument("--runs", type=int, default=7, help="timed calls per descriptor (median)")
+    ap.add_argument("--points", type=int, default=10_000, help="points of the sampled surface")
+    ap.add_argument("--keypoints", type=int, default=1_000, help="points described")
     args = ap.parse_args()
 
     pts = bumpy_sphere(args.points, seed=1)

@@ -17,7 +17,6 @@ too, and the target's corners are tracked into it the same way: a track over thr
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -35,6 +34,7 @@ from atr.sim.render import Renderer, project  # noqa: E402
 from atr.sim.scenarios import scenario  # noqa: E402
 from atr.sim.world import build_world  # noqa: E402
 from bench.tune_recognition import _render_pair  # noqa: E402
+from cli._args import script_parser  # noqa: E402
 
 NEAR_TARGET_PX = 150.0
 ON_SURFACE_TOL_M = 0.05  # a corner sees the target if the target is its first hit, within this
@@ -112,14 +112,14 @@ def _percentile(x: np.ndarray, q: float) -> float:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    ap = script_parser(__doc__)
+    ap.add_argument("--seed", type=int, default=101, help="tuning world seed (101-105; never 0)")
+    ap.add_argument("--scenario", type=int, default=2, help="Table II scenario")
+    ap.add_argument("--run", type=int, default=1, help="run within the scenario")
+    ap.add_argument("--frame", type=int, default=19, help="second frame of the pair")
+    ap.add_argument(
+        "--levels", type=int, nargs="+", default=[1, 3, 5, 13], help="pyramid depths to compare"
     )
-    ap.add_argument("--seed", type=int, default=101)
-    ap.add_argument("--scenario", type=int, default=2)
-    ap.add_argument("--run", type=int, default=1)
-    ap.add_argument("--frame", type=int, default=19)
-    ap.add_argument("--levels", type=int, nargs="+", default=[1, 3, 5, 13])
     ap.add_argument("--third-view", action="store_true", help="also track into the frame before")
     args = ap.parse_args()
     if args.seed == 0:

@@ -57,6 +57,7 @@ from mcap.records import (
 from mcap.stream_reader import StreamReader, get_chunk_data_stream
 
 from atr.errors import RecordingError
+from bus._closing import ClosesOnExit
 
 MAGIC = bytes([137, 77, 67, 65, 80, 48, 13, 10])
 PROFILE = ""
@@ -74,7 +75,7 @@ def _clamp(value: int, upper: int) -> int:
     return min(max(int(value), 0), upper)
 
 
-class ChunkedWriter:
+class ChunkedWriter(ClosesOnExit):
     """Writes an MCAP file in zstd chunks; schemas and channels ride in the chunk of their first
     message.
 
@@ -404,12 +405,6 @@ class ChunkedWriter:
         self._f.flush()
         if self._owns:
             self._f.close()
-
-    def __enter__(self) -> ChunkedWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     # Internals ---------------------------------------------------------------------------------
 

@@ -47,6 +47,7 @@ import zenoh
 
 from atr.errors import AtrError, BusError, ConfigError, RecordingError
 from bus import codec, keys, reliable, schemas
+from bus._closing import ClosesOnExit
 from bus.mcap_tools import MAX_ID, create_segment, is_closed, segment_path
 from bus.node import Node
 from bus.provenance import (
@@ -141,7 +142,7 @@ class _Provenance:
     config_json: bytes
 
 
-class Recorder:
+class Recorder(ClosesOnExit):
     """Subscribes to the bus and writes what arrives into an MCAP file.
 
     Args:
@@ -444,12 +445,6 @@ class Recorder:
             "refused": str(s.refused),
             "write_errors": str(s.write_errors),
         }
-
-    def __enter__(self) -> Recorder:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def _int_field(message: dict[Any, Any], name: str) -> int:

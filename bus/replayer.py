@@ -37,6 +37,7 @@ from mcap.records import Message
 
 from atr.errors import BusError, ConfigError, RecordingError
 from bus import codec, keys, mcap_tools
+from bus._closing import ClosesOnExit
 from bus.answers import DEFAULT_ANSWER_KEY, AnswerWatch
 from bus.node import Node
 from bus.session import open_session
@@ -71,7 +72,7 @@ class ReplayStats:
     by_topic: dict[str, int] = field(default_factory=dict)
 
 
-class Replayer:
+class Replayer(ClosesOnExit):
     """Publishes the inputs of one recording; usable in-process (`atr run`) or from `atr replay`.
 
     Args:
@@ -223,12 +224,6 @@ class Replayer:
         self.node.close()
         if self._owns_session:
             self.session.close()
-
-    def __enter__(self) -> Replayer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     # Internals ---------------------------------------------------------------------------------
 

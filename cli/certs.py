@@ -14,6 +14,20 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from cli._args import add_repeatable, forwarded
+
+# the options that are make_deployment's keywords of the same names: all but --out
+_DEPLOYMENT_OPTIONS = (
+    "ground",
+    "uav",
+    "port",
+    "air_port",
+    "matcher_on_air",
+    "images_to_ground",
+    "extra_hosts",
+    "days",
+)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr certs`."""
@@ -36,12 +50,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="let camera images cross the radio link (off: they stay on the air)",
     )
-    parser.add_argument(
-        "--host",
-        dest="extra_hosts",
-        action="append",
-        default=[],
-        help="another name or address of the ground router (repeatable)",
+    add_repeatable(
+        parser, "--host", "another name or address of the ground router", dest="extra_hosts"
     )
     parser.add_argument("--days", type=int, default=825, help="certificate lifetime, days")
 
@@ -53,17 +63,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.out.exists() and not args.out.is_dir():
         raise ConfigError(f"--out {args.out} is a file; expected a folder to write (created)")
-    deployment = make_deployment(
-        args.out,
-        ground=args.ground,
-        uav=args.uav,
-        port=args.port,
-        air_port=args.air_port,
-        matcher_on_air=args.matcher_on_air,
-        images_to_ground=args.images_to_ground,
-        extra_hosts=args.extra_hosts,
-        days=args.days,
-    )
+    deployment = make_deployment(args.out, **forwarded(args, *_DEPLOYMENT_OPTIONS))
     for path in sorted(deployment.root.rglob("*")):
         if path.is_file():
             print(path.relative_to(deployment.root))

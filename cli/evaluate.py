@@ -41,17 +41,11 @@ REPO = Path(__file__).resolve().parents[1]
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `atr eval`."""
+    from cli._args import add_repeatable
     from cli.world import add_vehicle_arguments
 
-    parser.add_argument(
-        "--scenario", type=int, action="append", help="Table II scenario (repeatable; default all)"
-    )
-    parser.add_argument(
-        "--run",
-        type=int,
-        action="append",
-        help="run within each scenario (repeatable; default all)",
-    )
+    add_repeatable(parser, "--scenario", "Table II scenario", "all", type=int)
+    add_repeatable(parser, "--run", "run within each scenario", "all", type=int)
     parser.add_argument(
         "--frames", type=int, help="only the first N frames of each run (N - 1 scenes)"
     )
@@ -61,19 +55,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=1,
         help="only every K-th scene of each run: a sample of the whole run (default 1: all)",
     )
-    parser.add_argument(
-        "--pipeline",
-        action="append",
-        help="gftt-sfm, surf-sfm, sgm-sfm, lidar, 2d-1..2d-4 (repeatable; default gftt-sfm)",
+    add_repeatable(
+        parser, "--pipeline", "gftt-sfm, surf-sfm, sgm-sfm, lidar, 2d-1..2d-4", "gftt-sfm"
     )
-    parser.add_argument(
-        "--descriptor",
-        action="append",
-        help="3D descriptor of the 3D pipelines (repeatable; default the config's)",
-    )
-    parser.add_argument(
-        "--noise", action="append", help="none, shot, gaussian:10, gaussian:30 (repeatable)"
-    )
+    add_repeatable(parser, "--descriptor", "3D descriptor of the 3D pipelines", "the config's")
+    add_repeatable(parser, "--noise", "none, shot, gaussian:10, gaussian:30")
     parser.add_argument(
         "--seed", type=int, default=0, help="world seed (0 is reported; others tune)"
     )
@@ -81,9 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--target-mesh",
         help="mesh file of the target (its template and its world): FILE[:units=mm,up=y]",
     )
-    parser.add_argument(
-        "--clutter-mesh", action="append", default=[], help="extra confuser mesh (repeatable)"
-    )
+    add_repeatable(parser, "--clutter-mesh", "extra confuser mesh")
     add_vehicle_arguments(parser)  # --target NAME, --clutter NAME: vehicles of the family
     parser.add_argument(
         "--targets",
@@ -191,14 +175,16 @@ def plan(args: argparse.Namespace) -> Plan:
 
 
 def execute(
-    plan_: Plan,
-    *,
-    jobs: int = 1,
-    scheduler: str | None = None,
-    via_services: bool = False,
-    force: bool = False,
+    plan_: Plan, *, via_services: bool = False, **where: Any
 ) -> dict[tuple[Flight, Arm], list[SceneRecord]]:
-    """Every (flight, arm) result of a plan, computed or loaded, with progress on stderr."""
+    """Every (flight, arm) result of a plan, computed or loaded, with progress on stderr.
+
+    Args:
+        plan_: what to evaluate.
+        via_services: run the 3D pipelines through the real service graph from recordings.
+        where: ``jobs``, ``scheduler`` and ``force``, as `atr.evaluation.experiment.execute` takes them.
+
+    """
     from atr.evaluation.experiment import execute
 
     runner = None
@@ -207,15 +193,7 @@ def execute(
 
     bars = _Bars()
     try:
-        return execute(
-            plan_,
-            jobs=jobs,
-            scheduler=scheduler,
-            via_services=runner,
-            force=force,
-            progress=bars.note,
-            bars=bars,
-        )
+        return execute(plan_, via_services=runner, progress=bars.note, bars=bars, **where)
     finally:
         bars.close()
 
@@ -235,16 +213,11 @@ def run(args: argparse.Namespace) -> int:
     """Plan, compute what is missing, score, write."""
     from atr.evaluation.tables import rows, write_outputs
     from atr.scaleout import SchedulerError
+    from cli._args import forwarded
 
     plan_ = plan(args)
     try:
-        results = execute(
-            plan_,
-            jobs=args.jobs,
-            scheduler=args.scheduler,
-            via_services=args.via_services,
-            force=args.force,
-        )
+        results = execute(plan_, **forwarded(args, "jobs", "scheduler", "via_services", "force"))
     except SchedulerError as exc:
         print(f"atr eval: {exc}", file=sys.stderr)
         return 2

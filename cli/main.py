@@ -27,31 +27,29 @@ import sys  # noqa: E402
 
 from atr.errors import AtrError  # noqa: E402
 
-# name -> (module under cli/, one-line help)
-COMMANDS: dict[str, tuple[str, str]] = {
-    "demo": ("demo", "simulate a short flight and run the whole service graph over Zenoh"),
-    "simulate": ("simulate", "simulate a scenario run straight into an MCAP recording"),
-    "world": ("world", "export the simulated world's meshes"),
-    "recognize": ("recognize", "run the 3D matcher on a model file and a scene file"),
-    "record": ("record", "record every message on the bus to an MCAP file"),
-    "replay": ("replay", "publish a recording's inputs back on the bus"),
-    "up": ("up", "start a deployment layout from compose/"),
-    "run": ("run", "replay a recording through a layout in lock-step and record the result"),
-    "mcap": ("mcap", "inspect, check and export recordings"),
-    "diff": (
-        "diff",
-        "compare the data messages of two recordings (exit 0 same, 1 differ, 2 error)",
-    ),
-    "regress": ("regress", "replay a corpus of recordings and diff each against its baseline"),
-    "service": ("service", "run one service by name (what the layouts start)"),
-    "eval": ("evaluate", "run the paper's experiments and score them"),
-    "report": ("report", "write the evaluation report to docs/evaluation"),
-    "certs": ("certs", "make a deployment's TLS certificates"),
-    "keygen": ("keygen", "make an Ed25519 key pair for sealing recordings"),
-    "seal": ("seal", "seal a recording: a signed manifest of every message"),
-    "verify": ("verify", "verify a sealed recording against a trusted public key"),
-    "audit": ("audit", "audit a recording: provenance, completeness, decisions, errors"),
+# name -> one-line help of every sub-command; its module is cli/<name>.py unless _MODULE_OF names another
+COMMANDS: dict[str, str] = {
+    "demo": "simulate a short flight and run the whole service graph over Zenoh",
+    "simulate": "simulate a scenario run straight into an MCAP recording",
+    "world": "export the simulated world's meshes",
+    "recognize": "run the 3D matcher on a model file and a scene file",
+    "record": "record every message on the bus to an MCAP file",
+    "replay": "publish a recording's inputs back on the bus",
+    "up": "start a deployment layout from compose/",
+    "run": "replay a recording through a layout in lock-step and record the result",
+    "mcap": "inspect, check and export recordings",
+    "diff": "compare the data messages of two recordings (exit 0 same, 1 differ, 2 error)",
+    "regress": "replay a corpus of recordings and diff each against its baseline",
+    "service": "run one service by name (what the layouts start)",
+    "eval": "run the paper's experiments and score them",
+    "report": "write the evaluation report to docs/evaluation",
+    "certs": "make a deployment's TLS certificates",
+    "keygen": "make an Ed25519 key pair for sealing recordings",
+    "seal": "seal a recording: a signed manifest of every message",
+    "verify": "verify a sealed recording against a trusted public key",
+    "audit": "audit a recording: provenance, completeness, decisions, errors",
 }
+_MODULE_OF: dict[str, str] = {"eval": "evaluate"}  # `eval` is a Python builtin
 
 
 class _VersionAction(argparse.Action):
@@ -86,7 +84,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action=_VersionAction, nargs=0, help="print the version")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name, (module_name, help_text) in COMMANDS.items():
+    for name, help_text in COMMANDS.items():
+        module_name = _MODULE_OF.get(name, name)
         if only is not None and name != only:
             sub.add_parser(name, help=help_text)
             continue

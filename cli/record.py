@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 
 from bus.service import add_zenoh_argument
+from cli._args import add_repeatable
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,12 +36,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--service", default="recorder", help="service name of its status/errors keys"
     )
-    parser.add_argument(
+    add_repeatable(
+        parser,
         "--key",
-        action="append",
+        "key expression to record",
+        "atr/** and sim/**",
         dest="keys",
         metavar="KEYEXPR",
-        help="key expression to record (repeatable; default atr/** and sim/**)",
     )
     parser.add_argument("--chunk-size", type=int, default=8 * 1024 * 1024, help="chunk size, bytes")
     parser.add_argument(

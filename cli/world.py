@@ -26,6 +26,8 @@ import argparse
 import json
 from pathlib import Path
 
+from cli._args import add_repeatable
+
 
 def add_vehicle_arguments(parser: argparse.ArgumentParser, mesh_files: bool = False) -> None:
     """`--target NAME` and `--clutter NAME` (vehicles of the family); with mesh_files also
@@ -34,26 +36,14 @@ def add_vehicle_arguments(parser: argparse.ArgumentParser, mesh_files: bool = Fa
     parser.add_argument(
         "--target", metavar="NAME", help="vehicle of the family replacing the T-72, e.g. leopard2"
     )
-    parser.add_argument(
-        "--clutter",
-        metavar="NAME",
-        action="append",
-        default=[],
-        help="extra confuser vehicle of the family (repeatable)",
-    )
+    add_repeatable(parser, "--clutter", "extra confuser vehicle of the family", metavar="NAME")
     if mesh_files:
         parser.add_argument(
             "--target-mesh",
             metavar="FILE",
             help="mesh file replacing the T-72: PLY/OBJ/STL/GLB[:units=mm,up=y,forward=x]",
         )
-        parser.add_argument(
-            "--clutter-mesh",
-            metavar="FILE",
-            action="append",
-            default=[],
-            help="extra confuser mesh file (repeatable)",
-        )
+        add_repeatable(parser, "--clutter-mesh", "extra confuser mesh file", metavar="FILE")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -69,12 +59,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     exp.add_argument(
         "--format", choices=("ply", "obj", "stl"), default="ply", help="mesh file format"
     )
-    exp.add_argument(
-        "--vehicle",
-        metavar="NAME",
-        action="append",
-        default=[],
-        help="export only this vehicle of the family (repeatable; default all)",
+    add_repeatable(
+        exp, "--vehicle", "export only this vehicle of the family", "all", metavar="NAME"
     )
     exp.add_argument(
         "--world", action="store_true", help="also export the world of one scenario run"

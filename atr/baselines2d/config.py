@@ -6,11 +6,10 @@ Table IV), the MATLAB default is used and named.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Literal
 
-from atr.errors import ConfigError
+from atr._bounds import bounded, check_fields
 
 Pair = Literal["2d-1", "2d-2", "2d-3", "2d-4"]
 
@@ -56,41 +55,26 @@ class Baseline2dConfig:
 
     """
 
-    n_templates: int = 12
+    n_templates: int = bounded(12, ge=1)
     template_scenario: int = 1
     template_run: int = 1
-    crop_margin_frac: float = 0.1
-    min_template_visible_fraction: float = 0.5
-    gftt_min_quality: float = 1e-3
-    gftt_filter_size_px: int = 3
-    fast_min_contrast: float = 1e-3
-    max_keypoints: int = 4000
+    crop_margin_frac: float = bounded(0.1, ge=0)
+    min_template_visible_fraction: float = bounded(0.5, gt=0, le=1)
+    gftt_min_quality: float = bounded(1e-3, gt=0)
+    gftt_filter_size_px: int = bounded(3, ge=1)
+    fast_min_contrast: float = bounded(1e-3, gt=0)
+    max_keypoints: int = bounded(4000, ge=1)
     surf_blob_threshold: float = 1e-3
-    nndr_ratio: float = 0.8
-    msac_max_distance_px: float = 1.5
-    msac_max_trials: int = 1000
-    msac_confidence: float = 0.99
-    min_inliers: int = 8
+    nndr_ratio: float = bounded(0.8, gt=0, le=1)
+    msac_max_distance_px: float = bounded(1.5, gt=0)
+    msac_max_trials: int = bounded(1000, ge=1)
+    msac_confidence: float = bounded(0.99, gt=0, le=1)
+    min_inliers: int = bounded(8, ge=3, why="an affine transform needs 3")
     ground_height_m: float = 0.0
 
     def __post_init__(self) -> None:
         """Validate; raise ConfigError naming the bad value."""
-        for name in ("n_templates", "max_keypoints", "msac_max_trials", "gftt_filter_size_px"):
-            if getattr(self, name) < 1:
-                raise ConfigError(f"{name} = {getattr(self, name)} must be >= 1")
-        if self.min_inliers < 3:
-            raise ConfigError(
-                f"min_inliers = {self.min_inliers} must be >= 3 (an affine transform needs 3)"
-            )
-        for name in ("gftt_min_quality", "fast_min_contrast", "msac_max_distance_px"):
-            value = getattr(self, name)
-            if not math.isfinite(value) or value <= 0:
-                raise ConfigError(f"{name} = {value} must be a finite number > 0")
-        for name in ("nndr_ratio", "msac_confidence", "min_template_visible_fraction"):
-            if not 0 < getattr(self, name) <= 1:
-                raise ConfigError(f"{name} = {getattr(self, name)} must be in (0, 1]")
-        if self.crop_margin_frac < 0:
-            raise ConfigError(f"crop_margin_frac = {self.crop_margin_frac} must be >= 0")
+        check_fields(self)
 
     @property
     def azimuth_step_deg(self) -> float:

@@ -17,11 +17,15 @@ import math
 from dataclasses import dataclass, fields
 from typing import Any, Literal, get_args
 
+from atr._bounds import Bounds, bounded, check_fields
 from atr.errors import ConfigError
 
 Descriptor = Literal["shot", "usc", "3dsc", "fpfh", "rops", "hod", "hod-s"]
 DESCRIPTORS: tuple[str, ...] = get_args(Descriptor)
 """Descriptor names the matcher accepts (paper Table III)."""
+
+_POSITIVE = Bounds(gt=0)
+"""Every number of the three parts is a positive multiple, count or size unless its field says more."""
 
 
 @dataclass(frozen=True)
@@ -65,7 +69,7 @@ class TemplateConfig:
     """
 
     resolution_m: float = 0.3
-    normal_k: int = 15
+    normal_k: int = bounded(15, ge=3, why="a plane needs 3 points")
     descriptor: Descriptor = "shot"
     k_support_radius: float = 10.0
     ground_vehicles: bool = True
@@ -78,7 +82,8 @@ class TemplateConfig:
 
     def __post_init__(self) -> None:
         """Validate every field; raise ConfigError naming the bad value."""
-        _check_fields(self)
+        check_fields(self, numbers_default=_POSITIVE)
+        _check_template(self)
 
     @property
     def support_radius_m(self) -> float:
@@ -163,12 +168,12 @@ class MatcherConfig:
     max_scene_points: int = 5_000_000
     max_scene_keypoints: int = 20_000
     smooth_angle_rad: float = math.radians(10.0)
-    knndr_k: int = 10
-    knndr_ratio: float = 1.0
+    knndr_k: int = bounded(10, ge=2, why="a ratio needs two distances")
+    knndr_ratio: float = bounded(1.0, gt=0, le=1)
     max_correspondences: int = 20000
     knn_across_views: bool = False
     k_consensus: float = 2.0
-    min_group_size: int = 5
+    min_group_size: int = bounded(5, ge=3, why="a pose needs 3")
     max_groups: int = 20
     hough_yaw_bin_deg: float = 10.0
     k_hough_cell: float = 3.0
@@ -181,16 +186,16 @@ class MatcherConfig:
     icp_iterations: int = 30
     k_icp_reach: float = 10.0
     k_overlap: float = 1.0
-    min_overlap: float = 0.3
+    min_overlap: float = bounded(0.3, gt=0, le=1)
     min_overlap_vertices: int = 20
-    max_clutter: float = 0.5
+    max_clutter: float = bounded(0.5, gt=0, le=1)
     k_clutter_sigma: float = 2.0
     k_ground_slab: float = 2.0
     k_nms: float = 10.0
 
     def __post_init__(self) -> None:
         """Validate every field; raise ConfigError naming the bad value."""
-        _check_fields(self)
+        check_fields(self, numbers_default=_POSITIVE)
 
 
 @dataclass(frozen=True)
@@ -221,7 +226,7 @@ class GroundConfig:
 
     k_ground_cell: float = 5.0
     k_ground_window: float = 15.0
-    ground_percentile: float = 20.0
+    ground_percentile: float = bounded(20.0, gt=0, le=100)
     k_keypoint_min_height: float = 1.5
     k_height_tol: float = 1.5
     k_terrain_window: float = 60.0
@@ -229,44 +234,7 @@ class GroundConfig:
 
     def __post_init__(self) -> None:
         """Validate every field; raise ConfigError naming the bad value."""
-        _check_fields(self)
-
-
-_FLAGS = ("ground_vehicles", "knn_across_views")
-_UNCHECKED = ("descriptor", "template_azimuths_deg", "template_elevations_deg")
-_RANGES: dict[str, tuple[float, float, str]] = {
-    "knndr_ratio": (0.0, 1.0, "(0, 1]"),
-    "max_clutter": (0.0, 1.0, "(0, 1]"),
-    "min_overlap": (0.0, 1.0, "(0, 1]"),
-}
-_MINIMUMS: dict[str, tuple[int, str]] = {
-    "normal_k": (3, "a plane needs 3 points"),
-    "knndr_k": (2, "a ratio needs two distances"),
-    "min_group_size": (3, "a pose needs 3"),
-}
-
-
-def _check_fields(part: Any) -> None:
-    """Every field of a part: flags are booleans, numbers finite and > 0, plus the rules of each field."""
-    for f in fields(part):
-        value = getattr(part, f.name)
-        if f.name in _UNCHECKED:
-            continue
-        if f.name in _FLAGS:
-            if not isinstance(value, bool):
-                raise ConfigError(f"{f.name} = {value!r} must be true or false")
-            continue
-        if not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
-            raise ConfigError(f"{f.name} = {value!r} must be a finite number > 0")
-        if f.name in _RANGES and not _RANGES[f.name][0] < value <= _RANGES[f.name][1]:
-            raise ConfigError(f"{f.name} = {value} must be in {_RANGES[f.name][2]}")
-        if f.name in _MINIMUMS and value < _MINIMUMS[f.name][0]:
-            least, why = _MINIMUMS[f.name]
-            raise ConfigError(f"{f.name} = {value} must be >= {least} ({why})")
-    if isinstance(part, TemplateConfig):
-        _check_template(part)
-    if isinstance(part, GroundConfig) and not 0 <= part.ground_percentile <= 100:
-        raise ConfigError(f"ground_percentile = {part.ground_percentile} must be in [0, 100]")
+        check_fields(self, numbers_default=_POSITIVE)
 
 
 def _check_template(part: TemplateConfig) -> None:
@@ -293,6 +261,19 @@ _PART_OF: dict[str, str] = {
     for f in fields(cls)
 }
 """The part that owns each field, by the field's name (names are unique across the parts)."""
+
+
+class _Metres:
+    """A threshold of ``RecognitionConfig`` in metres: its ``k_*`` field times ``resolution_m``."""
+
+    def __init__(self, k_field: str, doc: str) -> None:
+        self.k_field = k_field
+        self.__doc__ = f"{doc}, metres ({k_field} x resolution_m)."
+
+    def __get__(self, config: RecognitionConfig | None, owner: type | None = None) -> Any:
+        if config is None:  # looked up on the class (help(), docs): the descriptor itself
+            return self
+        return getattr(config, self.k_field) * config.template.resolution_m
 
 
 @dataclass(frozen=True, init=False)
@@ -365,66 +346,28 @@ class RecognitionConfig:
         """Where a field's name lives: ``["matcher", "knndr_k"]`` for "knndr_k"; [name] for a part."""
         return [_PART_OF[name], name] if name in _PART_OF else [name]
 
-    # Derived thresholds, metres.
-    @property
-    def support_radius_m(self) -> float:
-        """Descriptor support radius, metres."""
-        return self.template.support_radius_m
-
-    @property
-    def ground_cut_m(self) -> float:
-        """Height below which scene and template vertices count as ground, metres."""
-        return self.template.ground_cut_m
-
-    def _m(self, k: float) -> float:
-        return k * self.template.resolution_m
-
-    @property
-    def consensus_m(self) -> float:
-        """Geometric-consistency tolerance, metres."""
-        return self._m(self.matcher.k_consensus)
-
-    @property
-    def ransac_inlier_m(self) -> float:
-        """RANSAC inlier distance, metres."""
-        return self._m(self.matcher.k_ransac_inlier)
-
-    @property
-    def same_hypothesis_m(self) -> float:
-        """Translation under which two hypotheses of one view are verified once, metres."""
-        return self._m(self.matcher.k_same_hypothesis)
-
-    @property
-    def icp_gate_m(self) -> float:
-        """ICP maximum correspondence distance, metres."""
-        return self._m(self.matcher.k_icp_gate)
-
-    @property
-    def icp_reach_m(self) -> float:
-        """How far ICP may move a hypothesis on its cropped neighbourhood, metres."""
-        return self._m(self.matcher.k_icp_reach)
-
-    @property
-    def overlap_m(self) -> float:
-        """Model-scene overlap distance, metres."""
-        return self._m(self.matcher.k_overlap)
-
-    @property
-    def ground_slab_m(self) -> float:
-        """Height of the ground slab ignored by the clutter measure, metres."""
-        return self._m(self.matcher.k_ground_slab)
-
-    @property
-    def terrain_window_m(self) -> float:
-        """Half-size of the terrain window around a hypothesis, metres."""
-        return self._m(self.ground.k_terrain_window)
-
-    @property
-    def terrain_step_m(self) -> float:
-        """Highest a ground vehicle's base may stand above the terrain around it, metres."""
-        return self._m(self.ground.k_terrain_step)
-
-    @property
-    def nms_m(self) -> float:
-        """Distance under which two hypotheses are one location, metres."""
-        return self._m(self.matcher.k_nms)
+    # Derived thresholds, metres: each a k_* field times the template resolution (habit 6).
+    support_radius_m = _Metres("k_support_radius", "Descriptor support radius")
+    ground_cut_m = _Metres(
+        "k_ground_cut", "Height below which scene and template vertices are ground"
+    )
+    consensus_m = _Metres("k_consensus", "Geometric-consistency tolerance")
+    ransac_inlier_m = _Metres("k_ransac_inlier", "RANSAC inlier distance")
+    same_hypothesis_m = _Metres(
+        "k_same_hypothesis", "Translation under which two hypotheses of one view are verified once"
+    )
+    icp_gate_m = _Metres("k_icp_gate", "ICP maximum correspondence distance")
+    icp_reach_m = _Metres(
+        "k_icp_reach", "How far ICP may move a hypothesis on its cropped neighbourhood"
+    )
+    overlap_m = _Metres("k_overlap", "Model-scene overlap distance")
+    ground_slab_m = _Metres(
+        "k_ground_slab", "Height of the ground slab ignored by the clutter measure"
+    )
+    terrain_window_m = _Metres(
+        "k_terrain_window", "Half-size of the terrain window around a hypothesis"
+    )
+    terrain_step_m = _Metres(
+        "k_terrain_step", "Highest a ground vehicle's base may stand above the terrain around it"
+    )
+    nms_m = _Metres("k_nms", "Distance under which two hypotheses are one location")

@@ -66,8 +66,7 @@ def gftt_klt_correspondences(
     """GFTT corners in image a tracked into image b by pyramidal KLT with a forward-backward check
     (§II-B-1): the pixels of ``gftt_klt_with_stats`` without its counters.
     """
-    pixels_a, pixels_b, _ = gftt_klt_with_stats(image_a, image_b, config)
-    return pixels_a, pixels_b
+    return gftt_klt_with_stats(image_a, image_b, config)[:2]
 
 
 def gftt_klt_with_stats(
@@ -234,8 +233,7 @@ def surf_correspondences(
     """SURF keypoints in both images matched by the nearest-neighbour distance ratio (§II-B-1): the
     pixels of ``surf_with_stats`` without its counters.
     """
-    pixels_a, pixels_b, _ = surf_with_stats(image_a, image_b, config)
-    return pixels_a, pixels_b
+    return surf_with_stats(image_a, image_b, config)[:2]
 
 
 def surf_with_stats(

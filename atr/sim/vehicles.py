@@ -82,6 +82,14 @@ def _both_sides(mesh: Mesh) -> Mesh:
     return merge([mesh, _mirror_y(mesh)])
 
 
+def _symmetric(right_half: list[list[float]]) -> np.ndarray:
+    """A plan outline symmetric about y = 0, (K, 2) x, y metres, from its right half (y < 0, rear to
+    front): the half, then its mirror image front to rear.
+    """
+    half = np.array(right_half)
+    return np.vstack([half, half[::-1] * np.array([1.0, -1.0])])
+
+
 def t72() -> Mesh:
     """The T-72 main battle tank: hull, domed turret, 125 mm gun, road wheels, tracks, skirts, drums.
 
@@ -292,6 +300,26 @@ def _tracked_side(tracks: _Tracks) -> Mesh:
     return merge(parts)
 
 
+def _tracked_hull(
+    hull_xz: list[list[float]],
+    sponson_xz: list[list[float]],
+    y_hull: float,
+    y_sponson: float,
+    tracks: _Tracks,
+    paint: int,
+    skirts: tuple[Mesh, ...] = (),
+) -> tuple[Mesh, list[Mesh]]:
+    """A tracked vehicle's hull and the start of its left side, metres.
+
+    The hull is its side profile (x, z) extruded across y = -y_hull..y_hull. The left side holds the
+    sponson, its profile extruded from y_hull out to y_sponson, then the skirts and the running gear;
+    the caller adds what else stands on that side and mirrors it (`_both_sides`).
+    """
+    hull = extrude_profile(np.array(hull_xz), -y_hull, y_hull, paint)
+    sponson = extrude_profile(np.array(sponson_xz), y_hull, y_sponson, paint)
+    return hull, [sponson, *skirts, _tracked_side(tracks)]
+
+
 def leopard2(paint: int = M.CAMO) -> Mesh:
     """A Leopard-2A6-like main battle tank: long hull, wedge-armoured turret, long 120 mm L/55 gun.
 
@@ -299,35 +327,29 @@ def leopard2(paint: int = M.CAMO) -> Mesh:
     high to the top of the commander's sight (Leopard 2A6). The model: hull roof 1.6 m, turret roof
     2.55 m, muzzle 3.25 m past the hull front, seven road wheels a side.
     """
-    parts: list[Mesh] = []
-    hull = [[-3.86, 0.62], [-3.55, 0.50], [3.25, 0.50], [3.86, 1.05], [2.40, 1.60], [-3.86, 1.60]]
-    parts.append(extrude_profile(np.array(hull), -1.20, 1.20, paint))
-    sponson = np.array([[-3.86, 1.02], [3.80, 1.02], [2.40, 1.60], [-3.86, 1.60]])
-    side = [extrude_profile(sponson, 1.20, 1.87, paint)]
-    side.append(box((7.3, 0.06, 0.62), (0.05, 1.845, 0.83), paint))  # side skirt
-    side.append(box((1.4, 0.10, 0.66), (2.95, 1.825, 0.83), paint))  # heavier front skirt
     wheels = tuple(-2.7 + 0.9 * k for k in range(7))
-    side.append(
-        _tracked_side(
-            _Tracks(1.52, 0.635, wheels, 0.35, (3.3, 0.58, 0.33), (-3.45, 0.62, 0.33), 0.96)
-        )
+    hull, side = _tracked_hull(
+        [[-3.86, 0.62], [-3.55, 0.50], [3.25, 0.50], [3.86, 1.05], [2.40, 1.60], [-3.86, 1.60]],
+        [[-3.86, 1.02], [3.80, 1.02], [2.40, 1.60], [-3.86, 1.60]],
+        1.20,
+        1.87,
+        _Tracks(1.52, 0.635, wheels, 0.35, (3.3, 0.58, 0.33), (-3.45, 0.62, 0.33), 0.96),
+        paint,
+        skirts=(
+            box((7.3, 0.06, 0.62), (0.05, 1.845, 0.83), paint),  # side skirt
+            box((1.4, 0.10, 0.66), (2.95, 1.825, 0.83), paint),  # heavier front skirt
+        ),
     )
+    parts = [hull]
     side.append(box((1.6, 0.25, 0.5), (-1.3, 1.62, 2.05), paint))  # turret stowage box
     side.append(box((0.35, 0.3, 0.25), (-2.2, 1.55, 2.2), M.METAL))  # smoke dischargers
     parts.append(_both_sides(merge(side)))
     parts.append(box((2.2, 2.0, 0.04), (-2.6, 0.0, 1.62), M.METAL))  # engine deck grille
     parts.append(box((0.05, 2.0, 0.5), (-3.885, 0.0, 1.2), M.METAL))  # rear exhaust grille
     # turret: arrow-shaped wedge armour at the front, long bustle, sides leaning in
-    bottom = [
-        [-2.85, -1.50],
-        [0.95, -1.62],
-        [2.05, -0.42],
-        [2.05, 0.42],
-        [0.95, 1.62],
-        [-2.85, 1.50],
-    ]
-    top = [[-2.75, -1.38], [0.85, -1.50], [1.75, -0.40], [1.75, 0.40], [0.85, 1.50], [-2.75, 1.38]]
-    parts.append(loft(np.array(bottom), np.array(top), 1.60, 2.55, paint))
+    bottom = _symmetric([[-2.85, -1.50], [0.95, -1.62], [2.05, -0.42]])
+    top = _symmetric([[-2.75, -1.38], [0.85, -1.50], [1.75, -0.40]])
+    parts.append(loft(bottom, top, 1.60, 2.55, paint))
     parts.append(box((0.5, 2.4, 0.45), (-3.05, 0.0, 2.12), M.METAL))  # bustle basket
     # commander's panoramic sight (to 3.0 m), gunner's sight, loader's hatch
     parts.append(cylinder(0.20, 0.45, 14, paint, center=(-0.55, -0.75, 2.775)))
@@ -348,35 +370,29 @@ def m1(paint: int = M.SAND) -> Mesh:
     turret hatch (M1A1). The model: hull roof 1.44 m, turret roof 2.36 m, muzzle 1.85 m past the hull
     front, deep skirts over seven road wheels a side, bustle rack.
     """
-    parts: list[Mesh] = []
-    hull = [[-3.96, 0.60], [-3.70, 0.48], [3.30, 0.48], [3.96, 0.98], [2.35, 1.44], [-3.96, 1.44]]
-    parts.append(extrude_profile(np.array(hull), -1.16, 1.16, paint))
-    sponson = np.array([[-3.96, 0.98], [3.85, 0.98], [2.35, 1.44], [-3.96, 1.44]])
-    side = [extrude_profile(sponson, 1.16, 1.83, paint)]
-    side.append(box((7.0, 0.06, 0.70), (0.15, 1.80, 0.80), paint))  # side skirt
-    side.append(box((1.5, 0.10, 0.72), (3.0, 1.78, 0.80), paint))  # heavier front skirt
     wheels = tuple(-2.85 + 0.95 * k for k in range(7))
-    side.append(
-        _tracked_side(
-            _Tracks(1.49, 0.635, wheels, 0.32, (3.45, 0.55, 0.32), (-3.55, 0.62, 0.32), 0.90)
-        )
+    hull, side = _tracked_hull(
+        [[-3.96, 0.60], [-3.70, 0.48], [3.30, 0.48], [3.96, 0.98], [2.35, 1.44], [-3.96, 1.44]],
+        [[-3.96, 0.98], [3.85, 0.98], [2.35, 1.44], [-3.96, 1.44]],
+        1.16,
+        1.83,
+        _Tracks(1.49, 0.635, wheels, 0.32, (3.45, 0.55, 0.32), (-3.55, 0.62, 0.32), 0.90),
+        paint,
+        skirts=(
+            box((7.0, 0.06, 0.70), (0.15, 1.80, 0.80), paint),  # side skirt
+            box((1.5, 0.10, 0.72), (3.0, 1.78, 0.80), paint),  # heavier front skirt
+        ),
     )
+    parts = [hull]
     side.append(box((0.3, 0.35, 0.22), (1.1, 1.55, 2.05), M.METAL))  # smoke grenade launchers
     side.append(box((1.8, 0.2, 0.4), (-1.6, 1.38, 1.95), paint))  # turret side stowage
     parts.append(_both_sides(merge(side)))
     parts.append(box((0.05, 2.1, 0.6), (-3.985, 0.0, 1.1), M.METAL))  # rear grille door
     parts.append(box((1.8, 2.0, 0.04), (-2.9, 0.0, 1.46), M.METAL))  # engine deck
     # flat-faced turret: cheeks swept back from the gun, long bustle, sides leaning in
-    bottom = [
-        [-3.25, -1.30],
-        [0.55, -1.75],
-        [1.75, -0.55],
-        [1.75, 0.55],
-        [0.55, 1.75],
-        [-3.25, 1.30],
-    ]
-    top = [[-3.15, -1.20], [0.45, -1.60], [1.45, -0.50], [1.45, 0.50], [0.45, 1.60], [-3.15, 1.20]]
-    parts.append(loft(np.array(bottom), np.array(top), 1.44, 2.36, paint))
+    bottom = _symmetric([[-3.25, -1.30], [0.55, -1.75], [1.75, -0.55]])
+    top = _symmetric([[-3.15, -1.20], [0.45, -1.60], [1.45, -0.50]])
+    parts.append(loft(bottom, top, 1.44, 2.36, paint))
     parts.append(box((0.75, 2.5, 0.40), (-3.55, 0.0, 2.0), M.METAL))  # bustle rack
     # commander's cupola with the .50 cal, loader's hatch, gunner's primary sight
     parts.append(cylinder(0.42, 0.14, 16, paint, center=(-0.55, -0.72, 2.43)))
@@ -398,17 +414,16 @@ def m113(paint: int = M.OLIVE) -> Mesh:
     model: hull roof 1.83 m, five road wheels a side, trim vane, rear ramp, cupola with a shielded
     12.7 mm machine gun.
     """
-    parts: list[Mesh] = []
-    hull = np.array([[-2.43, 0.42], [1.95, 0.42], [2.43, 1.0], [1.65, 1.83], [-2.43, 1.83]])
-    parts.append(extrude_profile(hull, -0.96, 0.96, paint))
-    upper = np.array([[-2.43, 0.95], [2.38, 0.95], [1.65, 1.83], [-2.43, 1.83]])
-    side = [extrude_profile(upper, 0.96, 1.34, paint)]
     wheels = (-1.62, -0.81, 0.0, 0.81, 1.62)
-    side.append(
-        _tracked_side(
-            _Tracks(1.15, 0.38, wheels, 0.23, (2.05, 0.62, 0.26), (-2.15, 0.52, 0.26), 0.86)
-        )
+    hull, side = _tracked_hull(
+        [[-2.43, 0.42], [1.95, 0.42], [2.43, 1.0], [1.65, 1.83], [-2.43, 1.83]],
+        [[-2.43, 0.95], [2.38, 0.95], [1.65, 1.83], [-2.43, 1.83]],  # the upper hull's sides
+        0.96,
+        1.34,
+        _Tracks(1.15, 0.38, wheels, 0.23, (2.05, 0.62, 0.26), (-2.15, 0.52, 0.26), 0.86),
+        paint,
     )
+    parts = [hull]
     side.append(box((0.5, 0.08, 0.3), (1.7, 1.30, 1.35), M.METAL))  # exhaust / lights guard
     parts.append(_both_sides(merge(side)))
     vane = np.array([[2.44, 1.03], [2.48, 1.03], [1.95, 1.64], [1.91, 1.64]])
@@ -431,38 +446,17 @@ def btr80(paint: int = M.OLIVE) -> Mesh:
     on axles 1.35, 1.525 and 1.35 m apart, 2.41 m track.
     """
     parts: list[Mesh] = []
-    keel = [
-        [-3.2, -0.75],
-        [2.8, -0.75],
-        [3.3, -0.35],
-        [3.3, 0.35],
-        [2.8, 0.75],
-        [-3.2, 0.75],
-        [-3.5, 0.35],
-        [-3.5, -0.35],
-    ]
-    chine = [
-        [-3.65, -1.45],
-        [3.25, -1.45],
-        [3.85, -0.6],
-        [3.85, 0.6],
-        [3.25, 1.45],
-        [-3.65, 1.45],
-        [-3.85, 0.7],
-        [-3.85, -0.7],
-    ]
-    roof = [
-        [-3.45, -1.1],
-        [1.75, -1.1],
-        [2.3, -0.55],
-        [2.3, 0.55],
-        [1.75, 1.1],
-        [-3.45, 1.1],
-        [-3.6, 0.55],
-        [-3.6, -0.55],
-    ]
-    parts.append(loft(np.array(keel), np.array(chine), 0.475, 1.30, paint))
-    parts.append(loft(np.array(chine), np.array(roof), 1.30, 2.02, paint))
+    # boat-hull octagons; np.roll starts each on its right side, the stern pair of corners last
+    keel, chine, roof = (
+        np.roll(_symmetric(half), -1, axis=0)
+        for half in (
+            [[-3.5, -0.35], [-3.2, -0.75], [2.8, -0.75], [3.3, -0.35]],
+            [[-3.85, -0.7], [-3.65, -1.45], [3.25, -1.45], [3.85, -0.6]],
+            [[-3.6, -0.55], [-3.45, -1.1], [1.75, -1.1], [2.3, -0.55]],
+        )
+    )
+    parts.append(loft(keel, chine, 0.475, 1.30, paint))
+    parts.append(loft(chine, roof, 1.30, 2.02, paint))
     for x in (2.1125, 0.7625, -0.7625, -2.1125):
         for y in (-1.205, 1.205):
             parts.append(_wheel((x, y, 0.56), 0.56, 0.33, M.METAL, M.RUBBER))
@@ -484,22 +478,21 @@ def m109(paint: int = M.CAMO) -> Mesh:
     Combat Vehicle Reference Guide). The model: hull 6.19 m, turret roof 3.05 m with a rear bustle,
     gun in its travel lock over the glacis with bore evacuator and muzzle brake, seven road wheels.
     """
-    parts: list[Mesh] = []
-    hull = np.array([[-3.095, 0.46], [2.55, 0.46], [3.095, 1.05], [2.30, 1.55], [-3.095, 1.55]])
-    parts.append(extrude_profile(hull, -1.19, 1.19, paint))
-    sponson = np.array([[-3.095, 1.0], [3.0, 1.0], [2.30, 1.55], [-3.095, 1.55]])
-    side = [extrude_profile(sponson, 1.19, 1.575, paint)]
     wheels = tuple(-2.34 + 0.78 * k for k in range(7))
-    side.append(
-        _tracked_side(
-            _Tracks(1.385, 0.38, wheels, 0.24, (2.75, 0.62, 0.29), (-2.85, 0.55, 0.29), 0.93)
-        )
+    hull, side = _tracked_hull(
+        [[-3.095, 0.46], [2.55, 0.46], [3.095, 1.05], [2.30, 1.55], [-3.095, 1.55]],
+        [[-3.095, 1.0], [3.0, 1.0], [2.30, 1.55], [-3.095, 1.55]],
+        1.19,
+        1.575,
+        _Tracks(1.385, 0.38, wheels, 0.24, (2.75, 0.62, 0.29), (-2.85, 0.55, 0.29), 0.93),
+        paint,
     )
+    parts = [hull]
     side.append(box((1.8, 0.07, 0.45), (-1.2, 1.535, 2.2), paint))  # turret side stowage
     parts.append(_both_sides(merge(side)))
-    bottom = [[-3.05, -1.5], [0.9, -1.5], [1.3, -1.2], [1.3, 1.2], [0.9, 1.5], [-3.05, 1.5]]
-    top = [[-2.95, -1.38], [0.75, -1.38], [1.05, -1.1], [1.05, 1.1], [0.75, 1.38], [-2.95, 1.38]]
-    parts.append(loft(np.array(bottom), np.array(top), 1.55, 3.05, paint))
+    bottom = _symmetric([[-3.05, -1.5], [0.9, -1.5], [1.3, -1.2]])
+    top = _symmetric([[-2.95, -1.38], [0.75, -1.38], [1.05, -1.1]])
+    parts.append(loft(bottom, top, 1.55, 3.05, paint))
     parts.append(box((0.6, 2.6, 0.9), (-3.3, 0.0, 2.45), paint))  # rear bustle
     # commander's cupola and machine gun (to 3.24 m)
     parts.append(cylinder(0.45, 0.12, 16, paint, center=(-0.2, 0.85, 3.11)))
@@ -590,54 +583,82 @@ class VehicleSpec:
 
 
 FAMILY: tuple[VehicleSpec, ...] = (
-    VehicleSpec("t72", "main battle tank", t72, (9.53, 3.59, 2.23), "T-72A (Wikipedia, T-72)"),
     VehicleSpec(
-        "ifv", "tracked infantry fighting vehicle", ifv, (6.735, 3.15, 2.45), "BMP-2 (Wikipedia)"
+        name="t72",
+        kind="main battle tank",
+        build=t72,
+        size_m=(9.53, 3.59, 2.23),
+        source="T-72A (Wikipedia, T-72)",
     ),
     VehicleSpec(
-        "truck6x6", "military truck 6x6", truck_6x6, (7.366, 2.5, 2.87), "Ural-4320 (Wikipedia)"
-    ),
-    VehicleSpec("car", "car (sedan)", car, (4.62, 1.775, 1.455), "Toyota Corolla E170 sedan"),
-    VehicleSpec(
-        "leopard2",
-        "main battle tank, long gun",
-        leopard2,
-        (10.97, 3.75, 3.0),
-        "Leopard 2A6 (Wikipedia)",
+        name="ifv",
+        kind="tracked infantry fighting vehicle",
+        build=ifv,
+        size_m=(6.735, 3.15, 2.45),
+        source="BMP-2 (Wikipedia)",
     ),
     VehicleSpec(
-        "m1",
-        "main battle tank, low turret, short gun",
-        m1,
-        (9.77, 3.66, 2.44),
-        "M1A1 Abrams (Wikipedia)",
+        name="truck6x6",
+        kind="military truck 6x6",
+        build=truck_6x6,
+        size_m=(7.366, 2.5, 2.87),
+        source="Ural-4320 (Wikipedia)",
     ),
     VehicleSpec(
-        "m113", "tracked armoured personnel carrier", m113, (4.863, 2.686, 2.5), "M113 (Wikipedia)"
+        name="car",
+        kind="car (sedan)",
+        build=car,
+        size_m=(4.62, 1.775, 1.455),
+        source="Toyota Corolla E170 sedan",
     ),
     VehicleSpec(
-        "btr80",
-        "wheeled armoured personnel carrier 8x8",
-        btr80,
-        (7.7, 2.9, 2.41),
-        "BTR-80 (Wikipedia)",
+        name="leopard2",
+        kind="main battle tank, long gun",
+        build=leopard2,
+        size_m=(10.97, 3.75, 3.0),
+        source="Leopard 2A6 (Wikipedia)",
     ),
     VehicleSpec(
-        "m109",
-        "self-propelled howitzer",
-        m109,
-        (9.8, 3.15, 3.24),
-        "M109A6 Paladin (Gary's Combat Vehicle Reference Guide)",
+        name="m1",
+        kind="main battle tank, low turret, short gun",
+        build=m1,
+        size_m=(9.77, 3.66, 2.44),
+        source="M1A1 Abrams (Wikipedia)",
     ),
     VehicleSpec(
-        "hmmwv", "light utility vehicle 4x4", hmmwv, (4.57, 2.16, 1.83), "M998 HMMWV (Wikipedia)"
+        name="m113",
+        kind="tracked armoured personnel carrier",
+        build=m113,
+        size_m=(4.863, 2.686, 2.5),
+        source="M113 (Wikipedia)",
     ),
     VehicleSpec(
-        "pickup",
-        "pickup truck (double cab)",
-        pickup,
-        (5.33, 1.855, 1.815),
-        "Toyota Hilux double cab (2016, Toyota)",
+        name="btr80",
+        kind="wheeled armoured personnel carrier 8x8",
+        build=btr80,
+        size_m=(7.7, 2.9, 2.41),
+        source="BTR-80 (Wikipedia)",
+    ),
+    VehicleSpec(
+        name="m109",
+        kind="self-propelled howitzer",
+        build=m109,
+        size_m=(9.8, 3.15, 3.24),
+        source="M109A6 Paladin (Gary's Combat Vehicle Reference Guide)",
+    ),
+    VehicleSpec(
+        name="hmmwv",
+        kind="light utility vehicle 4x4",
+        build=hmmwv,
+        size_m=(4.57, 2.16, 1.83),
+        source="M998 HMMWV (Wikipedia)",
+    ),
+    VehicleSpec(
+        name="pickup",
+        kind="pickup truck (double cab)",
+        build=pickup,
+        size_m=(5.33, 1.855, 1.815),
+        source="Toyota Hilux double cab (2016, Toyota)",
     ),
 )
 """Every vehicle built in code, the T-72 first; any of them can be the target, any others confusers."""

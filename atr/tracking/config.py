@@ -7,9 +7,9 @@ message is one scene); a gap in the stamps counts as the scenes it spans (docs/t
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
+from atr._bounds import bounded, check_fields
 from atr.errors import ConfigError
 
 
@@ -39,34 +39,23 @@ class TrackingConfig:
 
     """
 
-    position_sigma_m: float = 0.5
-    yaw_sigma_deg: float = 10.0
-    k_gate: float = 3.5
-    k_heading_gate: float = 3.0
-    k_process: float = 0.1
-    yaw_process_deg: float = 1.0
-    confirm_hits: int = 2
-    confirm_window: int = 3
-    delete_after_misses: int = 20
-    flip_evidence: int = 2
-    supporting_max: int = 32
+    position_sigma_m: float = bounded(0.5, gt=0)
+    yaw_sigma_deg: float = bounded(10.0, gt=0)
+    k_gate: float = bounded(3.5, gt=0)
+    k_heading_gate: float = bounded(3.0, gt=0)
+    k_process: float = bounded(0.1, ge=0)
+    yaw_process_deg: float = bounded(1.0, ge=0)
+    confirm_hits: int = bounded(2, ge=1)
+    confirm_window: int = bounded(3, ge=1)
+    delete_after_misses: int = bounded(20, ge=1)
+    flip_evidence: int = bounded(2, ge=1)
+    supporting_max: int = bounded(32, ge=1)
 
     def __post_init__(self) -> None:
-        for name in ("position_sigma_m", "yaw_sigma_deg", "k_gate", "k_heading_gate"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ConfigError(f"tracking.{name} = {value} must be a finite number > 0")
-        for name in ("k_process", "yaw_process_deg"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ConfigError(f"tracking.{name} = {value} must be a finite number >= 0")
-        for name in ("confirm_hits", "confirm_window", "delete_after_misses", "flip_evidence"):
-            if getattr(self, name) < 1:
-                raise ConfigError(f"tracking.{name} = {getattr(self, name)} must be >= 1")
+        """Validate; raise ConfigError naming the bad value."""
+        check_fields(self, prefix="tracking.")
         if self.confirm_hits > self.confirm_window:
             raise ConfigError(
                 f"tracking.confirm_hits = {self.confirm_hits} must be <= confirm_window = "
                 f"{self.confirm_window} (M of N)"
             )
-        if self.supporting_max < 1:
-            raise ConfigError(f"tracking.supporting_max = {self.supporting_max} must be >= 1")

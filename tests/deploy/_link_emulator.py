@@ -53,35 +53,39 @@ TCP_RTO_MIN_S = 0.2  # Linux's minimum retransmission timeout (include/net/tcp.h
 
 
 @dataclass
-class LinkStats:
-    """What crossed the emulated link."""
+class Flow:
+    """What crossed the link in one direction."""
 
-    bytes_up: int = 0
-    bytes_down: int = 0
-    segments_up: int = 0
-    segments_down: int = 0
-    lost_up: int = 0
-    lost_down: int = 0
+    bytes: int = 0
+    segments: int = 0
+    lost: int = 0
+    timeline: list[tuple[float, int]] = field(default_factory=list)  # (monotonic time, bytes)
+
+
+@dataclass
+class LinkStats:
+    """What crossed the emulated link: each direction's flow, connections, refusals and outages."""
+
+    up: Flow = field(default_factory=Flow)
+    down: Flow = field(default_factory=Flow)
     connections: int = 0
     refused: int = 0
     outages: list[tuple[float, float | None, str]] = field(default_factory=list)
-    timeline_up: list[tuple[float, int]] = field(default_factory=list)
-    timeline_down: list[tuple[float, int]] = field(default_factory=list)
 
     def as_dict(self) -> dict:
-        """Counters as JSON-able values (timelines summarised per second)."""
-        return {
-            "bytes_up": self.bytes_up,
-            "bytes_down": self.bytes_down,
-            "segments_up": self.segments_up,
-            "segments_down": self.segments_down,
-            "lost_up": self.lost_up,
-            "lost_down": self.lost_down,
+        """Counters as JSON-able values, a flow's as bytes_up, bytes_down, ... (timelines: the last 20000)."""
+        flows = {"up": self.up, "down": self.down}
+        counts = {
+            f"{name}_{way}": getattr(flow, name)
+            for name in ("bytes", "segments", "lost")
+            for way, flow in flows.items()
+        }
+        return counts | {
             "connections": self.connections,
             "refused": self.refused,
             "outages": self.outages,
-            "timeline_up": self.timeline_up[-20000:],
-            "timeline_down": self.timeline_down[-20000:],
+            "timeline_up": self.up.timeline[-20000:],
+            "timeline_down": self.down.timeline[-20000:],
         }
 
 
@@ -314,17 +318,11 @@ class LinkEmulator:
     def _count(self, name: str, size: int, lost: bool) -> None:
         now = time.monotonic()
         with self._stats_lock:
-            s = self.stats
-            if name == "up":
-                s.bytes_up += size
-                s.segments_up += 1
-                s.lost_up += int(lost)
-                s.timeline_up.append((now, size))
-            else:
-                s.bytes_down += size
-                s.segments_down += 1
-                s.lost_down += int(lost)
-                s.timeline_down.append((now, size))
+            flow = self.stats.up if name == "up" else self.stats.down
+            flow.bytes += size
+            flow.segments += 1
+            flow.lost += int(lost)
+            flow.timeline.append((now, size))
 
     def snapshot(self) -> dict:
         """The counters, as a JSON-able dict."""

@@ -561,40 +561,43 @@ def _first_answer_after(split: Split, since_ns: int) -> float | None:
     return round((min(times) - since_ns) / 1e9, 1) if times else None
 
 
+def _fly_through(split: Split, fault: Any, recovered_figure: str) -> dict[str, Any]:
+    """Fly five frames with `fault()` striking after two are answered, and check that nothing was lost.
+    The figures add, as `recovered_figure`, the seconds from the time `fault()` returns (ns) to the
+    first answer after it."""
+    frames, start, fault_ns = 5, time.time_ns(), []
+    during = _after_answers(split, start, 2, lambda: fault_ns.append(fault()))
+    first, end, code = split.fly(frames, during=during)
+    assert code == 0, (split.folder / "source.log").read_text()[-3000:]
+    figures = _check_nothing_lost(split, first, end, frames)
+    figures[recovered_figure] = _first_answer_after(split, fault_ns[0])
+    return figures
+
+
 def test_link_outage_of_10_s_mid_flight_loses_nothing(split: Split) -> None:
     """The link drops for 10 s (connections cut, redials refused) after two answered frames: what was
     published meanwhile, on either side, arrives afterwards from the publishers' caches."""
-    frames, first, outage = 5, time.time_ns(), {}
 
-    def cut() -> None:
+    def cut() -> int:
         split.link.down()
-        outage["down_ns"] = time.time_ns()
         time.sleep(10)
         split.link.up()
-        outage["up_ns"] = time.time_ns()
+        return time.time_ns()  # the link is back
 
-    first, end, code = split.fly(frames, during=_after_answers(split, first, 2, cut))
-    assert code == 0, (split.folder / "source.log").read_text()[-3000:]
-    figures = _check_nothing_lost(split, first, end, frames)
-    figures["first_answer_after_link_back_s"] = _first_answer_after(split, outage["up_ns"])
-    split.figures["outage_10s"] = figures
+    split.figures["outage_10s"] = _fly_through(split, cut, "first_answer_after_link_back_s")
 
 
 def test_ground_router_restart_mid_flight_loses_nothing(split: Split) -> None:
     """SIGKILL the ground router after two answered frames; the launcher restarts it, every client
     redials, and what was published meanwhile arrives from the publishers' caches: no frame lost."""
-    frames, first, outage = 5, time.time_ns(), {}
 
-    def kill_router() -> None:
+    def kill_router() -> int:
         router = _child_pid(split.ground.pid, "router")
-        outage["killed_ns"] = time.time_ns()
+        killed_ns = time.time_ns()
         os.kill(router, signal.SIGKILL)
+        return killed_ns
 
-    first, end, code = split.fly(frames, during=_after_answers(split, first, 2, kill_router))
-    assert code == 0, (split.folder / "source.log").read_text()[-3000:]
-    figures = _check_nothing_lost(split, first, end, frames)
-    figures["first_answer_after_kill_s"] = _first_answer_after(split, outage["killed_ns"])
-    split.figures["router_restart"] = figures
+    split.figures["router_restart"] = _fly_through(split, kill_router, "first_answer_after_kill_s")
 
 
 def test_link_outage_beyond_the_cache_is_reported_exactly(split: Split) -> None:

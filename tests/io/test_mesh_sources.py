@@ -92,18 +92,18 @@ def test_a_file_source_is_named_by_its_stem_and_resolves_with_its_options(tmp_pa
     assert resolve_source("a.glb:up=y,forward=z") == str(tmp_path / "a.glb")
 
 
-@pytest.mark.parametrize(
-    ("source", "message"),
-    [
-        ("tiger", "neither a vehicle .*leopard2.* nor a mesh file"),
-        ("tank.stl:scale=2", "option 'scale=2'"),
-        ("tank.stl:units=km", "units=km .*'mm'"),
-        ("tank.obj:up=y,forward=-y", "must be different axes"),
-        ("tank.obj:up=w", "up=w"),
-        ("t72:units=mm", "built in code"),
-        ("notes.txt", "neither a vehicle"),
-    ],
-)
+BAD_SOURCES = {  # source -> what its refusal says
+    "tiger": "neither a vehicle .*leopard2.* nor a mesh file",
+    "tank.stl:scale=2": "option 'scale=2'",
+    "tank.stl:units=km": "units=km .*'mm'",
+    "tank.obj:up=y,forward=-y": "must be different axes",
+    "tank.obj:up=w": "up=w",
+    "t72:units=mm": "built in code",
+    "notes.txt": "neither a vehicle",
+}
+
+
+@pytest.mark.parametrize(("source", "message"), BAD_SOURCES.items())
 def test_bad_sources_are_refused_by_name(source, message):
     with pytest.raises(InputError, match=message):
         parse_source(source)
