@@ -315,7 +315,6 @@ class _Search:
             v = steps.verify_with_icp(
                 view_models[vi], self.scene.surface, h.T_scene_model, settings
             )
-            on_ground = self.ground.stands(v.T_scene_model)
             self.verified.append(
                 (
                     tpl.target,
@@ -326,7 +325,8 @@ class _Search:
                     *(round(float(x), 2) for x in v.T_scene_model[:3, 3]),
                 )
             )
-            if on_ground and _acceptable(v, m):
+            # the ground rule last: most hypotheses fail the fit, and the terrain costs more to look up
+            if _acceptable(v, m) and self.ground.stands(v.T_scene_model):
                 accepted += 1
                 det = Detection(
                     target=tpl.target,
