@@ -104,6 +104,25 @@ PAPER_T_ERROR_MAX_M: dict[str, tuple[float, str]] = {
 }
 """Largest median translation error per SfM variant, scenario 3 (§III-D-4, Fig. 9), metres."""
 
+PAPER_LRF_FLOATS: dict[str, int] = {"shot": 9, "usc": 9, "3dsc": 9}
+"""Floats of the local reference frame (a 3x3 rotation) that PCL's SHOT352 and ShapeContext1980 point types
+store beside the descriptor: Table V's SHOT, USC and 3DSC entries are (length + 9) x 8 bytes."""
+
+PAPER_BYTES_PER_VALUE = 8
+"""Table V's 3D entries count float64 values."""
+
+PAPER_SFM_VS_LIDAR_SPEEDUP = 10.0
+"""§III-D-3: SfM 3D ATR is "at least one order of magnitude faster than 3D LIDAR ATR"."""
+
+
+def paper_template_kb(descriptor: str) -> float:
+    """Template storage of a 3D descriptor as Table V counts it: one descriptor vector in float64, with
+    its local reference frame where the point type stores one; KB = 1000 bytes.
+    """
+    values = DESCRIPTOR_LENGTH[descriptor] + PAPER_LRF_FLOATS.get(descriptor, 0)
+    return values * PAPER_BYTES_PER_VALUE / 1000
+
+
 OBLIQUITY_CLASS: dict[float, str] = {0.0: "low", 15.0: "low", 30.0: "medium", 45.0: "high"}
 """Obliquity classes: 0-15° low (Fig. 5a says 15°, the text 0°), 30° medium, 45° high."""
 
@@ -154,6 +173,37 @@ def pool(
             "runs": len(members),
         }
     return out
+
+
+def median_interval(
+    values: Sequence[float],
+    versus: Sequence[float] | None = None,
+    *,
+    confidence: float = 0.95,
+    resamples: int = 5000,
+    seed: int = 0,
+) -> tuple[float, float]:
+    """Bootstrap percentile interval of the median of `values` (e.g. the true positives' translation
+    errors, metres), or with `versus` of median(values) - median(versus), the two resampled
+    independently (they are different scenes' true positives).
+
+    Returns:
+        (low, high); (nan, nan) when a sample is empty.
+
+    """
+    samples = [np.asarray(values, np.float64)] + (
+        [] if versus is None else [np.asarray(versus, np.float64)]
+    )
+    if any(len(s) == 0 for s in samples):
+        return float("nan"), float("nan")
+    rng = np.random.default_rng(seed)
+    medians = [
+        np.median(s[rng.integers(0, len(s), size=(resamples, len(s)))], axis=1) for s in samples
+    ]
+    statistic = medians[0] if versus is None else medians[0] - medians[1]
+    tail = 100 * (1 - confidence) / 2
+    low, high = np.percentile(statistic, [tail, 100 - tail])
+    return float(low), float(high)
 
 
 def compactness(f1: float, descriptor: str) -> float:

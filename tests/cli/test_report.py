@@ -1,17 +1,31 @@
-"""`atr report`: Fig. 7 (recognised scenes of a recorded flight, drawn in the true world frame) and the
-table of which arms really differ."""
+"""`atr report`: Fig. 7 (recognised scenes of a recorded flight, drawn in the true world frame), the
+table of which arms really differ, the verdict per claim of the paper, and the pages it writes."""
 
 from __future__ import annotations
 
+import argparse
+import json
+import math
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from atr.evaluation.aggregate import arm_label, pool
+from atr.evaluation.aggregate import (
+    PAPER_TABLE_V_STORAGE_KB,
+    arm_label,
+    median_interval,
+    paper_template_kb,
+    pool,
+)
 from bus import keys
 from cli.report import (
+    COUNTED_DIFFERENTLY,
+    DOES_NOT,
     EXAMPLE_RADIUS_M,
+    HOLDS,
+    NOT_SHOWN,
+    REPO,
     Figures,
     _differences_section,
     _examples_section,
@@ -21,7 +35,14 @@ from cli.report import (
     _targets_section,
     _time_vs_reference,
     _tracks_section,
+    _verdict_section,
+    bound_verdict,
     example_scenes,
+    level_verdict,
+    order_verdict,
+    run,
+    tie_verdict,
+    verdicts,
 )
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -235,3 +256,185 @@ def test_a_result_of_several_targets_gets_a_per_target_table_and_paper_sections_
     assert table["held out, all"][-3].startswith("0.40 (1/1/2)")
     assert table["held out, all"][-2] == "25.0%"
     assert _targets_section(rows[:1]) == []  # a single target: no section
+
+
+# ------------------------------------------------------------------------------------------- verdicts
+
+PAPER_RUNS = [
+    (1, 1, 30.0),
+    (1, 2, 0.0),
+]  # (scenario, run, obliquity): a medium and a low run at 50 m
+
+
+def _eval_row(
+    pipeline: str, descriptor: str, scenario: int, run: int, outcomes: list[str], **extra
+):
+    return {
+        **_run_row(pipeline, descriptor, run, outcomes),
+        "scenario": scenario,
+        "noise": "none",
+        "seed": 0,
+        "target": "t72",
+        "range_m": 50.0,
+        "t_errors_m": [0.2] * outcomes.count("tp"),
+        "time_per_scene_ms": 500.0,
+        "stages_ms": {"match": 100.0},
+        **extra,
+    }
+
+
+def _config(rows: list[dict]) -> dict:
+    """The config.json of an `atr eval` that wrote `rows`."""
+    return {
+        "command": ["atr", "eval", "--jobs", "2"],
+        "arms": [
+            {"pipeline": p, "descriptor": d}
+            for p, d in sorted({(r["pipeline"], r["descriptor"]) for r in rows})
+        ],
+        "flights": [
+            {"scenario": s, "run": n, "noise": "none"}
+            for s, n in sorted({(r["scenario"], r["run"]) for r in rows})
+        ],
+    }
+
+
+def _sfm_and_lidar(sfm_hits: int, lidar_hits: int, scenes: int = 20) -> list[dict]:
+    """GFTT SfM and LIDAR with SHOT on the same scenes, each finding the target in its first `*_hits`
+    scenes of every run and missing it in the rest."""
+    rows = []
+    for scenario, run_, obliquity in PAPER_RUNS:
+        for pipeline, hits in (("gftt-sfm", sfm_hits), ("lidar", lidar_hits)):
+            outcomes = ["tp"] * hits + ["fn"] * (scenes - hits)
+            rows.append(
+                _eval_row(pipeline, "shot", scenario, run_, outcomes, obliquity_deg=obliquity)
+            )
+    return rows
+
+
+def _verdict_of(rows: list[dict], claim_start: str, configs: list[dict] | None = None):
+    [found] = [
+        v for v in verdicts(rows, configs or [_config(rows)]) if v.claim.startswith(claim_start)
+    ]
+    return found
+
+
+def test_the_verdicts_follow_the_rows():
+    # SfM finds every target, LIDAR a third of them: the paper's "SfM outperforms LIDAR" holds
+    sfm_ahead = _sfm_and_lidar(sfm_hits=20, lidar_hits=6)
+    overall = _verdict_of(sfm_ahead, "Overall, SfM")
+    assert overall.verdict == HOLDS
+    assert overall.ours.startswith("gftt-sfm/shot 100.0% vs lidar/shot")
+    assert float(overall.interval.split()[0]) > 0
+    assert overall.sources == (1,)
+    # the same scenes with the arms swapped: it does not
+    lidar_ahead = _sfm_and_lidar(sfm_hits=6, lidar_hits=20)
+    assert _verdict_of(lidar_ahead, "Overall, SfM").verdict == DOES_NOT
+    # one scene apart on 40: the interval straddles 0, so the order is not shown and a tie holds
+    close = _sfm_and_lidar(sfm_hits=19, lidar_hits=20)
+    assert _verdict_of(close, "Overall, SfM").verdict == NOT_SHOWN
+    assert _verdict_of(close, "SfM and LIDAR 3D ATR perform equally well at 50 m").verdict == HOLDS
+    assert _verdict_of(sfm_ahead, "SfM and LIDAR 3D ATR perform equally").verdict == DOES_NOT
+    # the paper's 98 % at medium obliquity (30°): reached by 20 of 20, missed by 6 of 20
+    assert _verdict_of(sfm_ahead, "SfM GFTT F1 at medium").verdict == HOLDS
+    medium = _verdict_of(lidar_ahead, "SfM GFTT F1 at medium")
+    assert medium.verdict == DOES_NOT and medium.paper == "98.0%"
+    assert medium.ours == "46.2% (gftt-sfm/shot)"
+
+
+def test_each_claim_names_the_results_whose_rows_it_reads():
+    rows = _sfm_and_lidar(sfm_hits=20, lidar_hits=6)
+    sfm = [r for r in rows if r["pipeline"] == "gftt-sfm"]
+    lidar = [r for r in rows if r["pipeline"] == "lidar"]
+    configs = [_config(lidar), _config(sfm)]
+    assert _verdict_of(rows, "Overall, SfM", configs).sources == (1, 2)
+    assert _verdict_of(rows, "SfM GFTT F1 at low", configs).sources == (2,)
+    section = "\n".join(_verdict_section(rows, configs))
+    assert "| C1 | `atr eval --jobs 2` |" in section and "| C2 |" in section
+
+
+def test_template_storage_is_counted_like_for_like():
+    def row(pipeline: str, descriptor: str, kb: float) -> dict:
+        return _eval_row(
+            pipeline, descriptor, 1, 1, ["tp"], obliquity_deg=30.0, template_storage_kb=kb
+        )
+
+    # our whole 24-view template outweighs the 2D one, one descriptor vector as the paper counts does not
+    whole = [row("gftt-sfm", "shot", 7528.5), row("2d-1", "gftt+freak", 398.0)]
+    storage = _verdict_of(whole, "3D templates need less storage")
+    assert storage.verdict == COUNTED_DIFFERENTLY
+    assert "one 3D descriptor as the paper counts: 2.89–2.9 KB" in storage.ours
+    assert _verdict_of([row("gftt-sfm", "shot", 2.9), whole[1]], "3D templates").verdict == HOLDS
+    # the paper's convention reproduces its own Table V, to the digits it prints
+    for descriptor in ("shot", "usc", "3dsc", "fpfh", "rops", "hod", "hod-s"):
+        digits = len(str(PAPER_TABLE_V_STORAGE_KB[descriptor]).split(".")[1])
+        assert round(paper_template_kb(descriptor), digits) == PAPER_TABLE_V_STORAGE_KB[descriptor]
+
+
+def test_the_verdict_rules():
+    assert level_verdict(98.0, 99.0, 100.0) == HOLDS
+    assert level_verdict(98.0, 93.5, 98.0) == NOT_SHOWN  # the interval just reaches it
+    assert level_verdict(98.0, 93.5, 97.9) == DOES_NOT
+    assert bound_verdict(0.51, 0.40, 0.30) == HOLDS
+    assert bound_verdict(0.51, 0.90, 0.38) == NOT_SHOWN
+    assert bound_verdict(0.51, 0.90, 0.60) == DOES_NOT
+    assert order_verdict(0.01, 0.2) == HOLDS and order_verdict(-0.2, -0.01) == DOES_NOT
+    assert order_verdict(-0.1, 0.1) == NOT_SHOWN
+    assert tie_verdict(-0.1, 0.1) == HOLDS and tie_verdict(0.01, 0.1) == DOES_NOT
+
+
+def test_median_interval_holds_the_median_and_orders_a_difference():
+    rng = np.random.default_rng(5)
+    small, large = rng.normal(0.2, 0.05, 30), rng.normal(0.6, 0.05, 30)
+    low, high = median_interval(small)
+    assert low <= float(np.median(small)) <= high
+    assert median_interval(small) == (low, high)  # seeded: the same interval every time
+    assert median_interval(large, small)[0] > 0 > median_interval(small, large)[1]
+    assert all(math.isnan(x) for x in median_interval([]))
+
+
+def _write_result(folder: Path, rows: list[dict]) -> None:
+    folder.mkdir(parents=True)
+    (folder / "details.json").write_text(json.dumps({"results": rows}))
+    (folder / "results.json").write_text(json.dumps({"results": []}))
+    (folder / "config.json").write_text(
+        json.dumps(
+            _config(rows)
+            | {
+                "atr": {
+                    "sim": {"width_px": 8, "height_px": 6, "focal_px": 10.0},
+                    "pipeline": {"targets": ["t72"]},
+                }
+            }
+        )
+    )
+
+
+def test_the_report_rewrites_itself_from_its_own_data_byte_for_byte(tmp_path: Path):
+    out = tmp_path / "report"
+    rows = _sfm_and_lidar(sfm_hits=15, lidar_hits=12)
+    _write_result(out / "data" / "1-first", [r for r in rows if r["pipeline"] == "gftt-sfm"])
+    _write_result(out / "data" / "2-second", [r for r in rows if r["pipeline"] == "lidar"])
+    data = {p: p.read_bytes() for p in sorted((out / "data").rglob("*.json"))}
+    args = argparse.Namespace(results=sorted((out / "data").iterdir()), out=out, example=None)
+    pages = []
+    for _ in range(2):
+        assert run(args) == 0
+        pages.append({name: (out / name).read_bytes() for name in ("README.md", "details.md")})
+        # the committed results are both the input and the copy: they survive, byte for byte
+        assert {p: p.read_bytes() for p in sorted((out / "data").rglob("*.json"))} == data
+    assert pages[0] == pages[1]
+    readme = pages[0]["README.md"].decode()
+    assert "](details.md)" in readme and "## The paper's claims, tested" in readme
+    assert "code version" not in readme
+
+
+def test_the_committed_readme_reads_in_minutes():
+    readme = (REPO / "docs" / "evaluation" / "README.md").read_text()
+    assert len(readme.split()) < 2000
+    # the verdicts come first, then which arm to use
+    headings = [line for line in readme.splitlines() if line.startswith("## ")]
+    assert headings[:2] == [
+        "## The paper's claims, tested",
+        "## Which arm to use and what it costs",
+    ]
+    assert (REPO / "docs" / "evaluation" / "details.md").exists()
