@@ -221,6 +221,12 @@ class GroundConfig:
             vehicle. One-storey roofs are >= 3 m up. On a slope the window's 20th percentile lies
             downhill of the centre, by ~0.6 x the half-window x the gradient, so slopes up to ~14 %
             pass (docs/recognition.md, "Roofs").
+        k_place_radius: an accepted hypothesis is placed on the ground around it: its height is set to the
+            median height of the scene's ground points within this / resolution (8.1 m, beyond a
+            vehicle's half length: the ground beside it, not under it). The ground estimate above is a low
+            percentile of the lowest points and stands 0.1-0.3 m below the ground at 100 m; ICP leaves the
+            vehicle 0.1-0.3 m low too (docs/recognition.md, "Placing the vehicle on the ground").
+        min_place_points: fewer ground points than this within the radius leave the ICP height as it is.
 
     """
 
@@ -231,6 +237,8 @@ class GroundConfig:
     k_height_tol: float = 1.5
     k_terrain_window: float = 60.0
     k_terrain_step: float = 5.0
+    k_place_radius: float = 27.0
+    min_place_points: int = 20
 
     def __post_init__(self) -> None:
         """Validate every field; raise ConfigError naming the bad value."""
@@ -371,3 +379,6 @@ class RecognitionConfig:
         "k_terrain_step", "Highest a ground vehicle's base may stand above the terrain around it"
     )
     nms_m = _Metres("k_nms", "Distance under which two hypotheses are one location")
+    place_radius_m = _Metres(
+        "k_place_radius", "Radius of the ground around a hypothesis that its height is set from"
+    )

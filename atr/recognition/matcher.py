@@ -328,10 +328,11 @@ class _Search:
             # the ground rule last: most hypotheses fail the fit, and the terrain costs more to look up
             if _acceptable(v, m) and self.ground.stands(v.T_scene_model):
                 accepted += 1
+                T_world_target = self.ground.placed(v.T_scene_model)
                 det = Detection(
                     target=tpl.target,
                     descriptor=tpl.descriptor,
-                    T_world_target=v.T_scene_model,
+                    T_world_target=T_world_target,
                     score=float(v.overlap_vertices * (1.0 - v.clutter)),
                     overlap=float(v.overlap),
                     inliers=int(h.inliers),

@@ -41,6 +41,8 @@ class Scene:
         terrain: cell centres and lowest z of the subsampled scene (``lowest_per_cell``), or None.
         normals: (S, 3) unit normals of the surface.
         kp_idx: (K,) indices of the keypoints into the surface.
+        ground: (G, 3) the subsampled vertices taken for the ground (not described); None without the
+            prior.
 
     """
 
@@ -51,6 +53,7 @@ class Scene:
     terrain: tuple[np.ndarray, np.ndarray] | None = None
     normals: np.ndarray | None = None
     kp_idx: np.ndarray | None = None
+    ground: np.ndarray | None = None
 
     @property
     def keypoints(self) -> np.ndarray:
@@ -150,7 +153,14 @@ def remove_ground(
     stats["above_ground_points"] = int(above.sum())
     if above.sum() < config.template.normal_k + 1:
         raise EmptyScene(f"only {int(above.sum())} scene vertices stand above the ground")
-    return Scene(PointSet(surface[above], sigma), scene.viewpoint_m, height, band, terrain)
+    return Scene(
+        PointSet(surface[above], sigma),
+        scene.viewpoint_m,
+        height,
+        band,
+        terrain,
+        ground=surface[~above],
+    )
 
 
 def estimate_normals(scene: Scene, config: RecognitionConfig) -> None:
@@ -245,10 +255,27 @@ class GroundCheck:
         self.config = config
         self.terrain = scene.terrain
         self.ground_xy: cKDTree | None = None
+        self.ground_points: cKDTree | None = None
         if scene.upright:
             surface = scene.surface.points_m
             self.ground_xy = cKDTree(surface[:, :2])
             self.ground_z = surface[:, 2] - scene.height
+            if scene.ground is not None and len(scene.ground):
+                self.ground_points = cKDTree(scene.ground[:, :2])
+                self.ground_points_z = scene.ground[:, 2]
+
+    def placed(self, T_scene_model: np.ndarray) -> np.ndarray:
+        """The pose with its height set to the median height of the ground around it (a ground
+        vehicle's origin lies on the ground under it); unchanged without enough ground in reach.
+        """
+        if self.ground_points is None:
+            return T_scene_model
+        near = self.ground_points.query_ball_point(T_scene_model[:2, 3], self.config.place_radius_m)
+        if len(near) < self.config.ground.min_place_points:
+            return T_scene_model
+        T = T_scene_model.copy()
+        T[2, 3] = float(np.median(self.ground_points_z[near]))
+        return T
 
     def stands(self, T_scene_model: np.ndarray) -> bool:
         """Whether a target at this pose stands on the ground and at most ``k_terrain_step`` above

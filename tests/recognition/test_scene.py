@@ -1,0 +1,50 @@
+"""Our steps around the paper's (atr.recognition.scene): an accepted ground vehicle is placed on the ground
+beside it, which the low-percentile ground estimate under it is not."""
+
+import numpy as np
+
+from atr.recognition import RecognitionConfig
+from atr.recognition.scene import GroundCheck, Scene, remove_ground
+from atr.recognition.steps import PointSet
+
+
+class _OnGround:
+    params = {"on_ground": True}
+    points_m = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 2.3]])  # a 2.3 m tall vehicle
+
+
+def _noisy_ground_with_a_box(rng: np.random.Generator, ground_z_m: float) -> np.ndarray:
+    """A noisy flat ground at ground_z_m (sigma 0.1 m, as SfM at 100 m) and a 3 x 3 x 2 m box on it."""
+    ground = np.column_stack(
+        [rng.uniform(-20, 20, (6000, 2)), ground_z_m + rng.normal(0.0, 0.1, 6000)]
+    )
+    ground = ground[np.abs(ground[:, :2]).max(axis=1) > 1.5]  # hidden under the box
+    box = np.column_stack([rng.uniform(-1.5, 1.5, (800, 2)), rng.uniform(0.3, 2.0, 800)])
+    return np.vstack([ground, box + [0.0, 0.0, ground_z_m]])
+
+
+def test_an_accepted_vehicle_is_placed_on_the_median_of_the_ground_around_it():
+    rng = np.random.default_rng(4)
+    config = RecognitionConfig()
+    points = _noisy_ground_with_a_box(rng, ground_z_m=1.0)
+    scene = remove_ground(
+        Scene(PointSet(points), np.array([0.0, -80.0, 40.0])), [_OnGround()], config, {}
+    )
+    check = GroundCheck(scene, config)
+    sunk = np.eye(4)
+    sunk[2, 3] = 0.7  # ICP left the vehicle 0.3 m low
+    placed = check.placed(sunk)
+    assert abs(placed[2, 3] - 1.0) < 0.03  # the ground's median, not its low percentile
+    np.testing.assert_array_equal(placed[:2], sunk[:2])  # heading and x, y untouched
+    # the estimate under the vehicle the matcher grouped with stands lower than the ground
+    assert np.median(scene.surface.points_m[:, 2] - scene.height) < 0.95
+
+
+def test_without_ground_in_reach_the_height_stays_as_icp_left_it():
+    rng = np.random.default_rng(5)
+    config = RecognitionConfig()
+    points = _noisy_ground_with_a_box(rng, ground_z_m=0.0)
+    scene = remove_ground(Scene(PointSet(points), None), [_OnGround()], config, {})
+    far = np.eye(4)
+    far[:3, 3] = (200.0, 0.0, -0.4)  # nowhere near the cloud
+    np.testing.assert_array_equal(GroundCheck(scene, config).placed(far), far)
