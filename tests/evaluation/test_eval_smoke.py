@@ -111,6 +111,8 @@ def test_results_folder_and_resume(evaluated):
 def test_report_from_the_result(evaluated, tmp_path):
     root, _, _, _ = evaluated
     atr("report", "--results", str(root / "results" / "latest"), "--out", str(tmp_path))
-    text = (tmp_path / "README.md").read_text()
-    assert "Fig. 4" in text and "gftt-sfm/shot" in text and "Table V" in text
+    readme, details = ((tmp_path / page).read_text() for page in ("README.md", "details.md"))
+    assert "## The paper's claims, tested" in readme and "gftt-sfm/shot" in readme
+    assert "[details.md](details.md)" in readme
+    assert "Fig. 4" in details and "gftt-sfm/shot" in details and "Table V" in details
     assert (tmp_path / "data" / "results.json").exists()
