@@ -2,7 +2,7 @@
 
 from atr.baselines2d.config import PAIRS, Baseline2dConfig
 from atr.baselines2d.detect import Detection2d, Result2d, ground_intersection, recognize_2d
-from atr.baselines2d.features import Features2d, detect_and_describe, match_nndr
+from atr.baselines2d.features import Features2d, cap_keypoints, detect_and_describe, match_nndr
 from atr.baselines2d.templates import (
     Template2d,
     TemplateView,
@@ -20,6 +20,7 @@ __all__ = [
     "Result2d",
     "Template2d",
     "TemplateView",
+    "cap_keypoints",
     "crop_template_views",
     "describe_templates",
     "detect_and_describe",

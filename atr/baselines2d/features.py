@@ -6,6 +6,7 @@ xfeatures2d); SURF is non-free and absent, so #2 uses `atr.sfm.Surf` (Bay et al.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -55,6 +56,43 @@ def _as_gray_u8(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(img)
 
 
+def cap_keypoints(
+    keypoints: Sequence[cv2.KeyPoint],
+    max_keypoints: int | None,
+    grid_cell_px: int | None,
+    image_shape: tuple[int, ...],
+) -> list[cv2.KeyPoint]:
+    """The keypoints a cap keeps, strongest first within each rank.
+
+    Args:
+        keypoints: detected keypoints.
+        max_keypoints: how many to keep (None: all).
+        grid_cell_px: side of the grid cells the cap is spread over, pixels (None: the strongest of the
+            whole image). Spread, every cell keeps its strongest before any cell keeps its second, so a
+            small target keeps its share of the cap even when the background's corners are stronger.
+        image_shape: (H, W, ...) shape of the image, pixels.
+
+    Returns:
+        At most `max_keypoints` keypoints; ties are broken by position, so the kept subset never depends
+        on OpenCV's internal order.
+
+    """
+    ordered = sorted(keypoints, key=lambda k: (-k.response, k.pt[1], k.pt[0]))
+    if max_keypoints is None or len(ordered) <= max_keypoints:
+        return ordered
+    if grid_cell_px is None:
+        return ordered[:max_keypoints]
+    columns = -(-int(image_shape[1]) // grid_cell_px)
+    rank_in_cell: dict[int, int] = {}
+    ranks = []
+    for k in ordered:
+        cell = int(k.pt[1]) // grid_cell_px * columns + int(k.pt[0]) // grid_cell_px
+        ranks.append(rank_in_cell.get(cell, 0))
+        rank_in_cell[cell] = ranks[-1] + 1
+    keep = sorted(range(len(ordered)), key=lambda i: (ranks[i], i))[:max_keypoints]
+    return [ordered[i] for i in sorted(keep)]
+
+
 def detect_and_describe(image: np.ndarray, pair: str, config: Baseline2dConfig) -> Features2d:
     """Detect and describe keypoints with one Table IV combination.
 
@@ -77,7 +115,8 @@ def detect_and_describe(image: np.ndarray, pair: str, config: Baseline2dConfig) 
     detector, descriptor = PAIRS[pair]
     if detector == "surf":
         sfm = SfmConfig(
-            surf_max_keypoints=config.max_keypoints, surf_blob_threshold=config.surf_blob_threshold
+            surf_max_keypoints=config.max_keypoints or 0,  # SfmConfig's 0: all
+            surf_blob_threshold=config.surf_blob_threshold,
         )
         from atr.sfm import Surf  # numba kernels load only for this pair
 
@@ -89,7 +128,7 @@ def detect_and_describe(image: np.ndarray, pair: str, config: Baseline2dConfig) 
         )
     if detector == "gftt":
         gftt = cv2.GFTTDetector_create(
-            maxCorners=config.max_keypoints,
+            maxCorners=0 if config.keypoint_grid_cell_px else config.max_keypoints or 0,  # 0: all
             qualityLevel=config.gftt_min_quality,
             minDistance=1.0,
             blockSize=config.gftt_filter_size_px,
@@ -101,10 +140,9 @@ def detect_and_describe(image: np.ndarray, pair: str, config: Baseline2dConfig) 
             threshold=config.fast_threshold, nonmaxSuppression=True
         )
         keypoints = fast.detect(gray)
-    # Strongest first, ties by position, so the kept subset never depends on OpenCV's internal order.
-    keypoints = sorted(keypoints, key=lambda k: (-k.response, k.pt[1], k.pt[0]))[
-        : config.max_keypoints
-    ]
+    keypoints = cap_keypoints(
+        keypoints, config.max_keypoints, config.keypoint_grid_cell_px, gray.shape
+    )
     # FREAK and BRISK need a scale for their sampling pattern; GFTT/FAST points carry the detector window.
     extractor = cv2.xfeatures2d.FREAK_create() if descriptor == "freak" else _brisk()
     keypoints, desc = extractor.compute(gray, keypoints)

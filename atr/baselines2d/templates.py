@@ -1,4 +1,8 @@
-"""2D templates of the target (paper §III-D): 12 crops from scenario 1 run 1, one per 30° of azimuth.
+"""2D templates of the target (paper §III-D): 12 crops of the template run, one per 30° of azimuth.
+
+The template run is scenario 1 run 3 by default, the 30° obliquity run ("templates are derived from 30°
+obliquity", §III-D-1); run 1 (0°, the paper's "first trial") is the sensitivity option
+(`Baseline2dConfig.template_run`).
 
 For each azimuth step the frame of the run whose viewing azimuth (the camera's bearing in the target's own
 frame) is nearest is rendered, and the target's projected bounding box (plus a margin) is cropped. Only the
@@ -11,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from atr.baselines2d.config import Baseline2dConfig
@@ -35,6 +40,10 @@ class TemplateView:
         frame: frame index in the template run.
         image: (h, w, 3) uint8 RGB crop.
         reference_px: (2,) float64 the target origin's projection in crop pixels.
+        scale: size of the view relative to the frame it was cropped from (1: as rendered; 0.5: as the
+            target would look from twice the range).
+        keep_box_px: (4,) float64 x0, y0, x1, y1 of the target's box in crop pixels when the crop holds
+            context around it (a scaled view), whose keypoints are dropped; None: keep every keypoint.
 
     """
 
@@ -44,6 +53,8 @@ class TemplateView:
     frame: int
     image: np.ndarray
     reference_px: np.ndarray
+    scale: float = 1.0
+    keep_box_px: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -87,7 +98,7 @@ def crop_template_views(
     target_name: str | None = None,
     clutter_meshes: tuple[Mesh | tuple[str, Mesh], ...] = (),
 ) -> list[TemplateView]:
-    """Render and crop the template views from the template run (scenario 1 run 1 by default).
+    """Render and crop the template views from the template run (scenario 1 run 3 by default).
 
     Args:
         seed: world seed (the templates come from the evaluated world, as in the paper).
@@ -98,7 +109,8 @@ def crop_template_views(
         clutter_meshes: extra confuser meshes (or (name, mesh) pairs), as for `build_world`.
 
     Returns:
-        Up to `n_templates` views, in azimuth order; a step with no frame seeing the target well is skipped.
+        Up to `n_templates` views per scale of `config.template_scales`, in azimuth order (the scales of
+        one azimuth together); a step with no frame seeing the target well is skipped.
 
     Raises:
         InputError: no frame of the run sees the target.
@@ -128,14 +140,14 @@ def crop_template_views(
             T = poses[int(k)]
             if renderer.visible_fraction(T) < config.min_template_visible_fraction:
                 continue
-            view = _crop(renderer, world, K, T, sim_config, config.crop_margin_frac)
-            if view is None:
+            scaled = _crop(renderer, world, K, T, sim_config, config)
+            if not scaled:
                 continue
-            image, reference = view
-            views.append(
+            views.extend(
                 TemplateView(
-                    world.target_name, wanted, float(azimuths[k]), int(k), image, reference
+                    world.target_name, wanted, float(azimuths[k]), int(k), *view, scale, box
                 )
+                for scale, (*view, box) in zip(config.template_scales, scaled, strict=True)
             )
             break
     if not views:
@@ -151,28 +163,62 @@ def _crop(
     K: np.ndarray,
     T_world_cam: np.ndarray,
     cfg: SimConfig,
-    margin_frac: float,
-) -> tuple[np.ndarray, np.ndarray] | None:
+    config: Baseline2dConfig,
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
+    """(image, reference_px, keep_box_px) of the frame's view at each of `config.template_scales`;
+    empty when the target's box is off the image or under 8 px.
+    """
     uv = project(world.target.vertices, K, T_world_cam)
     if np.isnan(uv).any():
-        return None
+        return []
     lo, hi = uv.min(0), uv.max(0)
-    margin = margin_frac * (hi - lo)
-    x0, y0 = np.floor(np.maximum(lo - margin, 0)).astype(int)
-    x1, y1 = np.ceil(np.minimum(hi + margin, [cfg.width_px - 1, cfg.height_px - 1])).astype(int)
-    if x1 - x0 < 8 or y1 - y0 < 8:
-        return None
-    linear, _ = renderer.render(T_world_cam)
-    image = to_srgb8(linear)[y0 : y1 + 1, x0 : x1 + 1].copy()
+    margin = config.crop_margin_frac * (hi - lo)
+    size = np.array([cfg.width_px - 1, cfg.height_px - 1], np.float64)
+    box_lo = np.floor(np.maximum(lo - margin, 0))
+    box_hi = np.ceil(np.minimum(hi + margin, size))
+    if (box_hi - box_lo < 8).any():
+        return []
+    frame = to_srgb8(renderer.render(T_world_cam)[0])
     origin = project(world.T_world_target[None, :3, 3], K, T_world_cam)[0]
-    return image, origin - np.array([x0, y0], np.float64)
+    views = []
+    for scale in config.template_scales:
+        if scale == 1.0:  # the paper's crop: the box and its margin, every keypoint kept
+            x0, y0 = box_lo.astype(int)
+            x1, y1 = box_hi.astype(int)
+            crop = frame[y0 : y1 + 1, x0 : x1 + 1].copy()
+            views.append((crop, origin - box_lo, None))
+            continue
+        # Context around the box, so that the descriptors' sampling patterns fit around keypoints
+        # on the silhouette after shrinking; keypoints outside the box are dropped when described.
+        context = config.scaled_template_context_px / scale
+        c_lo = np.floor(np.maximum(box_lo - context, 0))
+        c_hi = np.ceil(np.minimum(box_hi + context, size))
+        x0, y0 = c_lo.astype(int)
+        x1, y1 = c_hi.astype(int)
+        crop = frame[y0 : y1 + 1, x0 : x1 + 1]
+        shape = np.round(np.array(crop.shape[1::-1]) * scale).astype(int)
+        small = cv2.resize(crop, tuple(int(v) for v in shape), interpolation=cv2.INTER_AREA)
+        box = np.concatenate([box_lo - c_lo, box_hi - c_lo]) * scale
+        views.append((small, (origin - c_lo) * scale, box))
+    return views
 
 
 def describe_templates(
     views: list[TemplateView], pair: str, config: Baseline2dConfig
 ) -> list[Template2d]:
-    """Describe every template view with one Table IV combination."""
-    return [Template2d(v, detect_and_describe(v.image, pair, config)) for v in views]
+    """Describe every template view with one Table IV combination (a view's keypoints outside its
+    `keep_box_px` dropped).
+    """
+    return [Template2d(v, _inside(detect_and_describe(v.image, pair, config), v)) for v in views]
+
+
+def _inside(features: Features2d, view: TemplateView) -> Features2d:
+    if view.keep_box_px is None:
+        return features
+    x0, y0, x1, y1 = view.keep_box_px
+    xy = features.xy_px
+    keep = (xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)
+    return Features2d(xy[keep], features.descriptors[keep], features.binary)
 
 
 def template_storage_bytes(templates: list[Template2d]) -> int:

@@ -258,6 +258,23 @@ def _templates_3d(plan_: Plan) -> None:
         plan_.storage_kb[("3d", arm.descriptor)] = kb
 
 
+_VIEW_FIELDS = (
+    "n_templates",
+    "template_scenario",
+    "template_run",
+    "template_scales",
+    "scaled_template_context_px",
+    "crop_margin_frac",
+    "min_template_visible_fraction",
+)
+"""The 2D baseline's settings its template crops depend on (the cache key of the crops: changing a
+matching threshold reuses them)."""
+
+
+def _view_fields(b2d: Any) -> dict[str, Any]:
+    return {name: jsonable(getattr(b2d, name)) for name in _VIEW_FIELDS}
+
+
 def _templates_2d(plan_: Plan, progress: Progress) -> None:
     pairs = [a.pipeline for a in plan_.arms if a.is_2d]
     if not pairs:
@@ -272,16 +289,18 @@ def _templates_2d(plan_: Plan, progress: Progress) -> None:
             noise="none",
         ),
         Arm("2d-1", "gftt+freak"),
-        {"sim": jsonable(plan_.config.sim), "b2d": jsonable(plan_.b2d)},
+        {"sim": jsonable(plan_.config.sim), "views": _view_fields(plan_.b2d)},
         plan_.version,
     )
     path = plan_.results / "cache" / f"views2d-{key}.pickle"
     if path.exists():
         views = pickle.loads(path.read_bytes())
     else:
+        sc = scenario_preset(plan_.b2d.template_scenario, plan_.b2d.template_run)
         progress(
-            f"cropping the 12 2D templates from scenario {plan_.b2d.template_scenario} run "
-            f"{plan_.b2d.template_run} (seed {f0.seed})"
+            f"cropping the {plan_.b2d.n_templates} 2D templates x scales "
+            f"{list(plan_.b2d.template_scales)} from scenario {sc.scenario} run {sc.run} "
+            f"({sc.obliquity_deg:.0f} deg obliquity, seed {f0.seed})"
         )
         views = crop_template_views(
             f0.seed,

@@ -1,7 +1,11 @@
 """2D ATR baseline (Fig. 3, Table IV): every pair finds a template pasted into a scene with a known similarity
-transform, the ground ray lands where geometry says, results repeat with the seed, bad input is refused."""
+transform, the ground ray lands where geometry says, results repeat with the seed, bad input is refused;
+templates come from the configured run, a spread keypoint cap keeps a weak target's keypoints, scaled
+templates are the stated sizes."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -12,13 +16,18 @@ from atr.baselines2d import (
     Baseline2dConfig,
     Template2d,
     TemplateView,
+    cap_keypoints,
+    crop_template_views,
     describe_templates,
     detect_and_describe,
     ground_intersection,
     recognize_2d,
     viewing_azimuth_deg,
 )
+from atr.baselines2d import templates as templates_module
 from atr.errors import ConfigError, InputError
+from atr.sim.config import SimConfig
+from atr.sim.scenarios import scenario
 
 K = np.array([[500.0, 0.0, 319.5], [0.0, 500.0, 239.5], [0.0, 0.0, 1.0]])
 
@@ -141,3 +150,144 @@ def test_bad_inputs():
         ).detections
         == []
     )
+
+
+# ------------------------------------------------------------------ template run, keypoint cap, scales
+
+
+def test_default_templates_come_from_the_30_degree_run():
+    config = Baseline2dConfig()
+    assert scenario(config.template_scenario, config.template_run).obliquity_deg == 30.0
+    assert config.template_scales == (1.0,)  # the paper's single-scale template
+    assert config.max_keypoints is None  # no cap, as MATLAB
+
+
+@pytest.mark.parametrize("run", [1, 3])
+def test_templates_are_cropped_from_the_configured_run(run, monkeypatch):
+    seen = []
+
+    class StopError(Exception):
+        pass
+
+    def build_world(sc, *args, **kwargs):
+        seen.append((sc.scenario, sc.run))
+        raise StopError
+
+    monkeypatch.setattr(templates_module, "build_world", build_world)
+    with pytest.raises(StopError):
+        crop_template_views(0, SimConfig(), Baseline2dConfig(template_run=run))
+    assert seen == [(1, run)]
+
+
+def _keypoints(xy_px: np.ndarray, response: np.ndarray) -> list[cv2.KeyPoint]:
+    return [
+        cv2.KeyPoint(float(x), float(y), 3.0, -1.0, float(r))
+        for (x, y), r in zip(xy_px, response, strict=True)
+    ]
+
+
+def test_grid_spread_cap_keeps_a_weak_targets_keypoints():
+    # 2,000 strong background corners over a 640x480 image, 200 weak ones on a 64x64 "target" that
+    # hides the background behind it (four 32 px cells)
+    rng = np.random.default_rng(0)
+    background = rng.uniform([0, 0], [640, 480], (3000, 2))
+    hidden = (background >= [320, 192]).all(1) & (background < [384, 256]).all(1)
+    background = background[~hidden][:2000]
+    target = rng.uniform([320, 192], [384, 256], (200, 2))
+    keypoints = _keypoints(
+        np.vstack([background, target]),
+        np.concatenate([rng.uniform(50, 100, 2000), rng.uniform(1, 10, 200)]),
+    )
+
+    def on_target(kept):
+        return sum(320 <= k.pt[0] < 384 and 192 <= k.pt[1] < 256 for k in kept)
+
+    strongest = cap_keypoints(keypoints, 600, None, (480, 640))
+    spread = cap_keypoints(keypoints, 600, 32, (480, 640))
+    assert len(strongest) == len(spread) == 600
+    assert on_target(strongest) == 0
+    # 300 cells share a 600 cap: each of the target's four keeps at least its two strongest
+    assert on_target(spread) >= 8
+    assert len(cap_keypoints(keypoints, None, None, (480, 640))) == len(keypoints)
+
+
+def test_no_cap_keeps_every_detection(scene_and_view):
+    scene, _, _ = scene_and_view
+    uncapped = detect_and_describe(scene, "2d-3", Baseline2dConfig(max_keypoints=None))
+    capped = detect_and_describe(scene, "2d-3", Baseline2dConfig(max_keypoints=100))
+    assert len(capped.xy_px) <= 100 < len(uncapped.xy_px)
+
+
+@pytest.mark.parametrize("pair", ["2d-1", "2d-3"])
+def test_spread_cap_keeps_a_faint_targets_keypoints_in_a_real_image(pair):
+    # a faint textured 96x96 "target" in a bright textured scene: the image's strongest corners are
+    # all in the background, a spread cap still keeps some on the target
+    scene = textured((480, 640), 4)
+    scene[192:288, 288:384] = textured((96, 96), 5)[:, :, :] // 6
+
+    def on_target(config):
+        xy = detect_and_describe(scene, pair, config).xy_px
+        return int(((xy >= [300, 204]) & (xy < [372, 276])).all(1).sum())
+
+    strongest = on_target(Baseline2dConfig(max_keypoints=1200, keypoint_grid_cell_px=None))
+    spread = on_target(Baseline2dConfig(max_keypoints=1200, keypoint_grid_cell_px=32))
+    assert strongest <= 2 and spread >= 10
+
+
+@pytest.fixture(scope="module")
+def scaled_views():
+    sim = SimConfig(width_px=320, height_px=240, focal_px=500.0)  # small frames: a fast render
+    config = Baseline2dConfig(n_templates=2, template_scales=(1.0, 0.5, 0.25))
+    return crop_template_views(3, sim, config), config
+
+
+def test_scaled_templates_are_the_stated_sizes(scaled_views):
+    views, config = scaled_views
+    assert [v.scale for v in views] == list(config.template_scales) * (len(views) // 3)
+    for k in range(0, len(views), 3):
+        full = views[k]
+        h, w = full.image.shape[:2]
+        assert full.keep_box_px is None
+        for view in views[k + 1 : k + 3]:
+            assert view.azimuth_deg == full.azimuth_deg and view.frame == full.frame
+            x0, y0, x1, y1 = view.keep_box_px
+            # the target's box (the x1 crop) shrunk by the scale, within a pixel of rounding
+            assert abs((x1 - x0) - view.scale * (w - 1)) <= 1.0
+            assert abs((y1 - y0) - view.scale * (h - 1)) <= 1.0
+            # the target origin sits at the same place relative to the shrunk box
+            assert np.allclose(
+                view.reference_px - [x0, y0], view.scale * full.reference_px, atol=1.0
+            )
+
+
+@pytest.mark.parametrize("pair", ["2d-1", "2d-3"])
+def test_scaled_templates_keep_keypoints_on_the_target_only(pair, scaled_views):
+    views, config = scaled_views
+    described = describe_templates(views, pair, config)
+    for template in described:
+        if template.view.keep_box_px is None:
+            continue
+        x0, y0, x1, y1 = template.view.keep_box_px
+        xy = template.features.xy_px
+        assert ((xy >= [x0, y0]) & (xy <= [x1, y1])).all()
+    # the context lets the x0.5 views keep keypoints (a bare x0.5 crop of a 65 px box keeps few)
+    assert all(len(t.features.xy_px) > 0 for t in described if t.view.scale == 0.5)
+
+
+def test_bad_template_scales_are_refused():
+    for scales in [(), (1.0, 1.0), (0.0,), (2.0,)]:
+        with pytest.raises(ConfigError):
+            Baseline2dConfig(template_scales=scales)
+
+
+def test_cached_crops_follow_the_template_settings_only():
+    from atr.evaluation.experiment import _view_fields
+
+    config = Baseline2dConfig()
+    assert _view_fields(replace(config, min_inliers=20, max_keypoints=5)) == _view_fields(config)
+    for changed in (
+        replace(config, template_run=1),
+        replace(config, template_scales=(1.0, 0.5)),
+        replace(config, crop_margin_frac=0.2),
+    ):
+        assert _view_fields(changed) != _view_fields(config)
