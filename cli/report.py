@@ -566,11 +566,6 @@ def _header_section(
             ["", ""],
             [
                 *[["command", "`" + " ".join(c.get("command", [])) + "`"] for c in configs],
-                [
-                    "code version",
-                    ", ".join(f"`{c.get('code_version', '?')}`" for c in configs)
-                    + " (hash of the `atr` sources when each result was computed)",
-                ],
                 ["world seed(s) reported", ", ".join(map(str, seeds))],
                 ["scenes per pipeline (no noise)", str(scenes)],
                 ["frames per run", str(sorted({r.get("frames") for r in details}, key=str))],
