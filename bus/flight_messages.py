@@ -41,7 +41,8 @@ def frame_messages(
         "accel_mps2": frame.accel_mps2,
     }
     if nav_fix:  # the flight's first frame, or every frame with an aided navigation fix
-        imu["init"] = {"T_world_imu": frame.T_world_imu, "v_world_mps": frame.v_world_imu_mps}
+        T_world_imu, v_world_mps = frame.nav_fix()
+        imu["init"] = {"T_world_imu": T_world_imu, "v_world_mps": v_world_mps}
     yield keys.imu(uav), imu
     if frame.lidar_points_m is not None:
         yield (

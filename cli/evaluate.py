@@ -59,7 +59,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         parser, "--pipeline", "gftt-sfm, surf-sfm, sgm-sfm, lidar, 2d-1..2d-4", "gftt-sfm"
     )
     add_repeatable(parser, "--descriptor", "3D descriptor of the 3D pipelines", "the config's")
-    add_repeatable(parser, "--noise", "none, shot, gaussian:10, gaussian:30")
+    add_repeatable(
+        parser, "--noise", "none, shot, gaussian:10, gaussian:30, nav (GNSS/INS errors on the fix)"
+    )
     parser.add_argument(
         "--seed", type=int, default=0, help="world seed (0 is reported; others tune)"
     )

@@ -34,7 +34,7 @@ from atr.sfm import reconstruct
 from atr.sfm.pairing import FramePairer, Pair
 from atr.sim.config import SimConfig
 from atr.sim.flight import FlightSimulator, SensorFrame
-from atr.sim.noise import parse_noise
+from atr.sim.noise import parse_noise, with_navigation_errors
 from atr.sim.scenarios import scenario as scenario_preset
 from atr.sim.world import World, build_world
 
@@ -259,12 +259,15 @@ def detection_dict(target: str, T_world_target: np.ndarray, score: float) -> dic
 
 
 def initial_nav_state(frame: SensorFrame) -> NavState:
-    """Return the state the first ImuBatch's `init` carries (true pose, velocity; zero biases)."""
+    """Return the state an ImuBatch's `init` carries (the navigation fix's pose and velocity, the truth
+    unless sim.nav_*_sigma add errors; zero biases).
+    """
+    T_world_imu, v_world_mps = frame.nav_fix()
     return NavState(
         stamp_ns=frame.stamp_ns,
-        R_world_imu=frame.T_world_imu[:3, :3].copy(),
-        p_world_m=frame.T_world_imu[:3, 3].copy(),
-        v_world_mps=frame.v_world_imu_mps.copy(),
+        R_world_imu=T_world_imu[:3, :3].copy(),
+        p_world_m=T_world_imu[:3, 3].copy(),
+        v_world_mps=v_world_mps.copy(),
         gyro_bias_radps=np.zeros(3),
         accel_bias_mps2=np.zeros(3),
     )
@@ -288,14 +291,14 @@ def flight_frames(flight: Flight, config: AtrConfig, lidar: bool) -> Iterator[Se
     """The flight's simulated frames (what `atr simulate` records); with ``flight.every`` > 1 only the
     sampled scenes' frames are rendered (the others carry IMU and truth only).
     """
+    noise = parse_noise(flight.noise)  # "none": no noise
     sim = FlightSimulator(
         scenario_preset(flight.scenario, flight.run),
         flight_world(flight, config.sim),
-        config.sim,
+        with_navigation_errors(config.sim, noise),
         seed=flight.seed,
         frames=flight.frames,
     )
-    noise = parse_noise(flight.noise)  # "none": no noise
     gap = config.sfm.pair_gap_frames
 
     def rendered(seq: int) -> bool:  # a sampled scene's frame or its SfM partner

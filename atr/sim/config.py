@@ -32,6 +32,15 @@ def _default_T_imu_cam() -> tuple[tuple[float, ...], ...]:
     return tuple(tuple(float(x) for x in row) for row in T)
 
 
+_NAV_SIGMA_FIELDS = (
+    "nav_position_sigma_m",
+    "nav_altitude_sigma_m",
+    "nav_velocity_sigma_mps",
+    "nav_tilt_sigma_deg",
+    "nav_heading_sigma_deg",
+)
+
+
 @dataclass(frozen=True)
 class SimConfig:
     """All simulator settings. Defaults reproduce the documented set-up (docs/sim.md)."""
@@ -97,6 +106,15 @@ class SimConfig:
     # frame, so each pair's relative motion is integrated from a correct state over one frame interval only
     # (the paper's premise: the IMU measures the camera motion between the two frames).
     nav_fix_every_frame: bool = False
+    # Errors of the navigation fix (the INS alignment and, with nav_fix_every_frame, every aided fix), each a
+    # first-order Gauss-Markov process along the flight with this correlation time: a GNSS/INS's errors
+    # wander slowly rather than jump from fix to fix. Zeros (the default): the fix is the true state.
+    nav_position_sigma_m: float = 0.0  # std per horizontal axis, metres
+    nav_altitude_sigma_m: float = 0.0  # std of the height, metres
+    nav_velocity_sigma_mps: float = 0.0  # std per axis, m/s
+    nav_tilt_sigma_deg: float = 0.0  # std of roll and of pitch (about the world's x and y), degrees
+    nav_heading_sigma_deg: float = 0.0  # std of heading (about the world's z), degrees
+    nav_error_correlation_s: float = 60.0  # correlation time of every error above, seconds
 
     def __post_init__(self) -> None:
         for name in ("width_px", "height_px", "lidar_grid", "lidar_sub_rays", "target_samples"):
@@ -115,6 +133,13 @@ class SimConfig:
         ):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} {getattr(self, name)} must be > 0")
+        for name in _NAV_SIGMA_FIELDS:
+            if not 0.0 <= getattr(self, name) < np.inf:
+                raise ConfigError(f"{name} {getattr(self, name)} must be a finite number >= 0")
+        if not 0.0 < self.nav_error_correlation_s < np.inf:
+            raise ConfigError(
+                f"nav_error_correlation_s {self.nav_error_correlation_s} must be a finite number > 0"
+            )
         if self.haze_visibility_m is not None and self.haze_visibility_m <= 0:
             raise ConfigError(f"haze_visibility_m {self.haze_visibility_m} must be > 0 or None")
         if len(self.dist_coeffs) not in (4, 5, 8) or not np.all(np.isfinite(self.dist_coeffs)):
@@ -146,6 +171,11 @@ class SimConfig:
     def T_imu_cam_matrix(self) -> np.ndarray:
         """IMU-from-camera as a (4, 4) float64 array."""
         return np.array(self.T_imu_cam, dtype=np.float64)
+
+    @property
+    def nav_fix_noisy(self) -> bool:
+        """The navigation fix has errors (any nav_*_sigma above 0)."""
+        return any(getattr(self, n) > 0.0 for n in _NAV_SIGMA_FIELDS)
 
     def frame_interval_s(self, range_m: float) -> float:
         """Frame interval for a UAV-target range: baseline = baseline_to_range x range, seconds.

@@ -13,10 +13,17 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from atr.errors import ConfigError
 from atr.sim.config import SimConfig
-from atr.sim.noise import NoiseSpec, noisy_cloud, noisy_image, parse_noise
+from atr.sim.noise import (
+    NoiseSpec,
+    noisy_cloud,
+    noisy_image,
+    parse_noise,
+    with_navigation_errors,
+)
 from atr.sim.render import Renderer, to_srgb8
 from atr.sim.scenarios import Scenario
 from atr.sim.trajectory import Orbit
@@ -59,6 +66,17 @@ class SensorFrame:
     lidar_points_m: np.ndarray | None  # (P, 3) float64 world frame, when lidar=True
     targets: list[TargetTruth] = field(default_factory=list)
     dist_coeffs: np.ndarray = field(default_factory=lambda: np.zeros(5))  # OpenCV lens distortion
+    # what a navigation fix at this frame reports (sim.nav_*_sigma errors on the true state; None: the truth)
+    nav_T_world_imu: np.ndarray | None = None  # (4, 4)
+    nav_v_world_imu_mps: np.ndarray | None = None  # (3,)
+
+    def nav_fix(self) -> tuple[np.ndarray, np.ndarray]:
+        """The navigation fix at this frame: IMU pose (4, 4) and velocity (3,) m/s, as the UAV's GNSS/INS
+        reports them.
+        """
+        if self.nav_T_world_imu is None or self.nav_v_world_imu_mps is None:
+            return self.T_world_imu, self.v_world_imu_mps
+        return self.nav_T_world_imu, self.nav_v_world_imu_mps
 
 
 @dataclass(frozen=True)
@@ -100,6 +118,40 @@ def imu_samples(
         gyro = gyro + bg + rng.normal(0, cfg.gyro_noise_density / np.sqrt(dt), (n, 3))
         accel = accel + ba + rng.normal(0, cfg.accel_noise_density / np.sqrt(dt), (n, 3))
     return ImuSamples(np.asarray(t_s, dtype=np.float64), gyro, accel)
+
+
+def nav_fix_errors(
+    n_frames: int, frame_interval_s: float, cfg: SimConfig, rng: np.random.Generator
+) -> np.ndarray:
+    """The navigation fix's errors at every frame, (n_frames, 9): position (3) m, velocity (3) m/s and a
+    small rotation (3) rad about the world's x, y, z (tilt, tilt, heading).
+
+    Each is a first-order Gauss-Markov process with the configured std and ``nav_error_correlation_s``:
+    stationary from the first frame, so the errors wander along the flight as a GNSS/INS's do.
+    """
+    sigma = np.array(
+        [cfg.nav_position_sigma_m] * 2
+        + [cfg.nav_altitude_sigma_m]
+        + [cfg.nav_velocity_sigma_mps] * 3
+        + list(np.radians([cfg.nav_tilt_sigma_deg] * 2 + [cfg.nav_heading_sigma_deg]))
+    )
+    a = np.exp(-frame_interval_s / cfg.nav_error_correlation_s)
+    white = rng.normal(0.0, 1.0, (n_frames, 9))
+    errors = np.empty((n_frames, 9))
+    errors[0] = sigma * white[0]
+    for k in range(1, n_frames):
+        errors[k] = a * errors[k - 1] + np.sqrt(1.0 - a * a) * sigma * white[k]
+    return errors
+
+
+def _with_error(
+    T_world_imu: np.ndarray, v_world_imu: np.ndarray, error: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A true pose and velocity with one frame's navigation errors (``nav_fix_errors``) applied."""
+    T = T_world_imu.copy()
+    T[:3, :3] = Rotation.from_rotvec(error[6:9]).as_matrix() @ T_world_imu[:3, :3]
+    T[:3, 3] = T_world_imu[:3, 3] + error[0:3]
+    return T, v_world_imu + error[3:6]
 
 
 def true_imu_pose(orbit: Orbit, t_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -155,10 +207,18 @@ class FlightSimulator:
         t_imu = (
             np.arange(max(n_imu, (self.n_frames - 1) * self._per_frame + 1)) / config.imu_rate_hz
         )
-        # generator seeds: stream + [tag, ...] (1: IMU, 2: image noise, 3: LIDAR)
+        # generator seeds: stream + [tag, ...] (1: IMU, 2: image noise, 3: LIDAR, 4: navigation fix)
         self._stream = [seed, scenario.scenario, scenario.run]
         imu_rng = np.random.default_rng(self._stream + [1]) if imu_noise else None
         self._imu = imu_samples(world.orbit, t_imu, config, imu_rng)
+        self._nav_errors = None
+        if config.nav_fix_noisy:  # its own generator: the other streams keep their values
+            self._nav_errors = nav_fix_errors(
+                max(scenario.n_frames, self.n_frames),
+                self._per_frame / config.imu_rate_hz,
+                config,
+                np.random.default_rng(self._stream + [4]),
+            )
         self._T_imu_cam = config.T_imu_cam_matrix
         self._K = config.K
 
@@ -199,6 +259,9 @@ class FlightSimulator:
             )
         ]
         imu = self._imu
+        nav_T, nav_v = None, None
+        if self._nav_errors is not None:
+            nav_T, nav_v = _with_error(T_world_imu, v_world_imu, self._nav_errors[seq])
         return SensorFrame(
             seq=seq,
             stamp_ns=STAMP0_NS + int(round(t * 1e9)),
@@ -213,6 +276,8 @@ class FlightSimulator:
             lidar_points_m=cloud,
             targets=truth,
             dist_coeffs=np.asarray(self._cfg.dist_coeffs, dtype=np.float64),
+            nav_T_world_imu=nav_T,
+            nav_v_world_imu_mps=nav_v,
         )
 
     def _image(self, seq: int, T_world_cam: np.ndarray, noise: NoiseSpec) -> np.ndarray:
@@ -270,6 +335,8 @@ def simulate_flight(
     spec = parse_noise(noise)
     if world is None:
         world = build_world(scenario, seed, config=cfg)
-    sim = FlightSimulator(scenario, world, cfg, seed=seed, frames=frames)
+    sim = FlightSimulator(
+        scenario, world, with_navigation_errors(cfg, spec), seed=seed, frames=frames
+    )
     for seq in range(sim.n_frames):
         yield sim.frame(seq, lidar=lidar, noise=spec)

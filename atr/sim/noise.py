@@ -16,16 +16,22 @@ LIDAR):
 Shot noise: images draw photo-electrons from a Poisson law (full_well electrons at full scale);
 LIDAR ranges become q x Poisson(range / q) (paper eq. 8 in spirit: Poisson noise on the LIDAR
 depth).
+
+"nav" is not the paper's: the navigation fix (the INS alignment and, with `sim.nav_fix_every_frame`, every
+aided fix) gets the errors of a small UAV's GNSS/INS, `GNSS_INS_ERRORS`, where the simulator's settings
+give none: a sensitivity test of the premise that the camera's motion is known.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from atr.errors import ConfigError
+from atr.sim.config import SimConfig
 
 
 @dataclass(frozen=True)
@@ -41,11 +47,34 @@ class NoiseSpec:
 
     shot: bool = False
     gaussian_sigma_m: float = 0.0
+    navigation: bool = False
 
     @property
     def active(self) -> bool:
-        """True when any noise is applied."""
+        """True when the images or the LIDAR get noise."""
         return self.shot or self.gaussian_sigma_m > 0
+
+
+GNSS_INS_ERRORS: dict[str, float] = {
+    "nav_position_sigma_m": 1.5,
+    "nav_altitude_sigma_m": 3.0,
+    "nav_velocity_sigma_mps": 0.05,
+    "nav_tilt_sigma_deg": 0.1,
+    "nav_heading_sigma_deg": 0.5,
+}
+"""The "nav" noise: a single-antenna GNSS (no RTK) aiding a MEMS INS, as small UAVs carry: metre-level
+position, centimetres per second of velocity, a tenth of a degree of tilt and half a degree of heading
+(magnetometer-aided). SimConfig fields, applied where they are 0."""
+
+
+def with_navigation_errors(config: SimConfig, noise: NoiseSpec) -> SimConfig:
+    """The simulator settings a flight with ``noise`` runs on: `GNSS_INS_ERRORS` where the settings give
+    none, when the noise asks for navigation errors.
+    """
+    if not noise.navigation:
+        return config
+    unset = {name: value for name, value in GNSS_INS_ERRORS.items() if getattr(config, name) == 0.0}
+    return dataclasses.replace(config, **unset)
 
 
 _GAUSS = re.compile(r"^gauss(?:ian)?:?(\d+(?:\.\d+)?)(cm)?$")
@@ -60,20 +89,23 @@ def parse_noise(spec: str | None) -> NoiseSpec:
     """
     if spec is None:
         return NoiseSpec()
-    shot, sigma = False, 0.0
+    shot, sigma, navigation = False, 0.0, False
     for token in (t.strip().lower() for t in spec.split(",")):
         if token in ("", "none"):
             continue
         if token in ("shot", "poisson"):
             shot = True
             continue
+        if token == "nav":
+            navigation = True
+            continue
         m = _GAUSS.match(token)
         if m is None:
             raise ConfigError(
-                f"noise spec token {token!r} must be 'shot', 'gaussian:<sigma cm>' or 'none'"
+                f"noise spec token {token!r} must be 'shot', 'gaussian:<sigma cm>', 'nav' or 'none'"
             )
         sigma = float(m.group(1)) / 100.0
-    return NoiseSpec(shot, sigma)
+    return NoiseSpec(shot, sigma, navigation)
 
 
 def noisy_image(

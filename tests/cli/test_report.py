@@ -30,6 +30,7 @@ from cli.report import (
     _differences_section,
     _examples_section,
     _false_positives_section,
+    _navigation_section,
     _paper_rows,
     _scene_outcomes,
     _targets_section,
@@ -38,6 +39,7 @@ from cli.report import (
     _verdict_section,
     bound_verdict,
     example_scenes,
+    latest_rows,
     level_verdict,
     order_verdict,
     run,
@@ -438,3 +440,39 @@ def test_the_committed_readme_reads_in_minutes():
         "## Which arm to use and what it costs",
     ]
     assert (REPO / "docs" / "evaluation" / "details.md").exists()
+
+
+def test_a_later_result_replaces_an_earlier_ones_rows_for_the_same_arm_and_flight():
+    old = [
+        _eval_row("2d-1", "gftt+freak", 1, 3, ["fn"] * 4),
+        _eval_row("sgm-sfm", "shot", 1, 3, ["tp"]),
+    ]
+    new = [_eval_row("2d-1", "gftt+freak", 1, 3, ["tp", "tp", "fn", "fn"])]
+    other_seed = [_eval_row("2d-1", "gftt+freak", 1, 3, ["fp"], seed=7)]
+    rows = latest_rows([old, new, other_seed])
+    assert [(r["pipeline"], r["tp"], r["source"]) for r in rows] == [
+        ("sgm-sfm", 1, 1),
+        ("2d-1", 2, 2),  # the re-run, not the first run
+        ("2d-1", 0, 3),  # another world seed is another flight
+    ]
+
+
+def test_navigation_errors_are_compared_arm_by_arm_on_the_same_scenes():
+    exact = [
+        _eval_row("sgm-sfm", "shot", 1, 3, ["tp"] * 9 + ["fn"], nav_error_median_m=0.0),
+        _eval_row(
+            "sgm-sfm", "shot", 2, 3, ["tp"] * 10, nav_error_median_m=0.0
+        ),  # not flown with nav
+    ]
+    nav = [
+        _eval_row(
+            "sgm-sfm", "shot", 1, 3, ["tp"] * 7 + ["fn"] * 3, noise="nav", nav_error_median_m=1.7
+        )
+    ]
+    text = "\n".join(_navigation_section(exact + nav))
+    (row,) = [line for line in text.splitlines() if line.startswith("| sgm-sfm/shot")]
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[1] == "1"  # only the run flown both ways
+    assert cells[2].startswith("94.7% (9/0/1)") and cells[3].startswith("82.4% (7/0/3)")
+    assert cells[5] == "0.00 / 1.70"
+    assert _navigation_section(exact) == []  # nothing to compare without a nav row

@@ -134,3 +134,49 @@ def test_unrendered_frame_keeps_imu_and_truth(small_cfg, world_s1r3):
     assert shown.image.shape == (240, 320, 3) and shown.lidar_points_m is not None
     shown.image, shown.lidar_points_m = skipped.image, None
     assert _sig([shown]) == _sig([skipped])
+
+
+def test_navigation_fix_errors_wander_with_their_std_and_correlation():
+    from atr.sim.config import SimConfig
+    from atr.sim.flight import nav_fix_errors
+
+    cfg = SimConfig(
+        nav_position_sigma_m=1.5,
+        nav_altitude_sigma_m=3.0,
+        nav_velocity_sigma_mps=0.05,
+        nav_tilt_sigma_deg=0.1,
+        nav_heading_sigma_deg=0.3,
+        nav_error_correlation_s=2.0,
+    )
+    e = nav_fix_errors(40000, 0.5, cfg, np.random.default_rng(0))
+    expected = np.r_[1.5, 1.5, 3.0, [0.05] * 3, np.radians([0.1, 0.1, 0.3])]
+    assert np.allclose(e.std(axis=0), expected, rtol=0.05)
+    lag1 = [np.corrcoef(e[:-1, i], e[1:, i])[0, 1] for i in range(9)]
+    assert np.allclose(lag1, np.exp(-0.5 / 2.0), atol=0.02)  # Gauss-Markov, not white
+
+
+def test_a_noisy_navigation_fix_leaves_every_sensor_and_the_truth_unchanged(small_cfg, world_s1r3):
+    import dataclasses
+
+    from atr.sim.flight import FlightSimulator
+
+    noisy_cfg = dataclasses.replace(small_cfg, nav_position_sigma_m=2.0, nav_heading_sigma_deg=0.5)
+    exact = FlightSimulator(scenario(1, 3), world_s1r3, small_cfg, seed=0, frames=2).frame(1)
+    noisy = FlightSimulator(scenario(1, 3), world_s1r3, noisy_cfg, seed=0, frames=2).frame(1)
+    assert _sig([noisy]) == _sig([exact])  # images, IMU, truth: the same draws
+    T_exact, v_exact = exact.nav_fix()
+    assert T_exact is exact.T_world_imu and v_exact is exact.v_world_imu_mps  # no errors: the truth
+    T_nav, v_nav = noisy.nav_fix()
+    assert 0.0 < np.linalg.norm(T_nav[:2, 3] - exact.T_world_imu[:2, 3]) < 20.0
+    assert T_nav[2, 3] == exact.T_world_imu[2, 3]  # no altitude error asked for
+    assert np.allclose(T_nav[:3, :3] @ T_nav[:3, :3].T, np.eye(3))
+    assert not np.allclose(T_nav[:3, :3], exact.T_world_imu[:3, :3])
+
+
+@pytest.mark.parametrize("field", ["nav_tilt_sigma_deg", "nav_error_correlation_s"])
+def test_bad_navigation_errors_are_refused_by_name(field):
+    from atr.errors import ConfigError
+    from atr.sim.config import SimConfig
+
+    with pytest.raises(ConfigError, match=field):
+        SimConfig(**{field: -1.0})

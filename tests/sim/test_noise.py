@@ -47,3 +47,22 @@ def test_lidar_gaussian_noise_in_metres():
         pts + [0, 0, 100.0], np.zeros(3), NoiseSpec(False, 0.30), 1e-3, np.random.default_rng(0)
     )
     assert np.std(out - [0, 0, 100.0], axis=0) == pytest.approx([0.3, 0.3, 0.3], rel=0.05)
+
+
+def test_nav_noise_gives_the_fix_gnss_ins_errors_where_the_settings_give_none():
+    import dataclasses
+
+    from atr.sim.config import SimConfig
+    from atr.sim.noise import GNSS_INS_ERRORS, parse_noise, with_navigation_errors
+
+    spec = parse_noise("shot,nav")
+    assert spec.navigation and spec.shot and spec.active
+    assert not parse_noise("nav").active  # images and LIDAR stay clean
+    exact = SimConfig()
+    assert not exact.nav_fix_noisy
+    assert with_navigation_errors(exact, parse_noise("none")) is exact
+    noisy = with_navigation_errors(exact, spec)
+    assert noisy.nav_fix_noisy
+    assert {n: getattr(noisy, n) for n in GNSS_INS_ERRORS} == GNSS_INS_ERRORS
+    own = dataclasses.replace(exact, nav_heading_sigma_deg=2.0)  # a setting given is kept
+    assert with_navigation_errors(own, spec).nav_heading_sigma_deg == 2.0
