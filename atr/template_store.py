@@ -20,8 +20,8 @@ import numpy as np
 
 from atr.config import AtrConfig
 from atr.io.mesh import load_mesh
-from atr.recognition import DESCRIPTORS, Template, build_template
-from atr.recognition.template import TEMPLATE_VERSION
+from atr.recognition import DESCRIPTORS, build_template
+from atr.recognition.template import TEMPLATE_VERSION, message_storage_bytes
 from atr.sim.vehicles import VEHICLES
 
 log = logging.getLogger("atr")
@@ -77,7 +77,7 @@ class TemplateStore:
                 log.warning("cache file %s unreadable (%s); rebuilding", path, exc)
         config = dataclasses.replace(self.config.recognition, descriptor=descriptor)
         template = build_template(mesh.vertices, mesh.triangles, target, descriptor, config)
-        data = template.to_dict()
+        data = template.to_dict(compact=config.template.compact_descriptors)
         message = {
             "stamp_ns": 0,
             "seq": 0,
@@ -90,7 +90,7 @@ class TemplateStore:
             "points_m": data["points_m"],
             "normals": data["normals"],
             "keypoints_m": data["keypoints_m"],
-            "descriptors": data["descriptors"],
+            **{n: data[n] for n in _DESCRIPTOR_ARRAYS if n in data},
             "params": json.loads(json.dumps(data["params"], default=str)),
         }
         self.cache_dir.mkdir(parents=True, exist_ok=True)
@@ -100,12 +100,13 @@ class TemplateStore:
             target,
             descriptor,
             len(data["keypoints_m"]),
-            (data["descriptors"].nbytes + data["keypoints_m"].nbytes) / 1024,
+            message_storage_bytes(message) / 1024,
         )
         return message
 
 
-_ARRAYS = ("points_m", "normals", "keypoints_m", "descriptors")
+_DESCRIPTOR_ARRAYS = ("descriptors", "descriptor_low", "descriptor_step")
+_ARRAYS = ("points_m", "normals", "keypoints_m", *_DESCRIPTOR_ARRAYS)
 
 
 def _save(path: Path, message: dict) -> None:
@@ -115,19 +116,16 @@ def _save(path: Path, message: dict) -> None:
     header = json.dumps({"order": list(message), "fields": fields}).encode()
     tmp = path.with_suffix(".tmp")
     with open(tmp, "wb") as f:
-        np.savez(f, header=np.frombuffer(header, np.uint8), **{k: message[k] for k in _ARRAYS})
+        np.savez(
+            f,
+            header=np.frombuffer(header, np.uint8),
+            **{k: message[k] for k in _ARRAYS if k in message},
+        )
     tmp.replace(path)
 
 
 def _load(path: Path) -> dict:
     with np.load(path, allow_pickle=False) as stored:
         header = json.loads(stored["header"].tobytes())
-        values = header["fields"] | {k: stored[k] for k in _ARRAYS}
+        values = header["fields"] | {k: stored[k] for k in _ARRAYS if k in stored}
     return {k: values[k] for k in header["order"]}
-
-
-def template_from_message(message: dict) -> Template:
-    """The Template a Template message describes (what the store hands out), as the matcher uses it."""
-    return Template.from_dict(
-        message | {"params": message.get("params", {}) | {"resolution_m": message["resolution_m"]}}
-    )

@@ -36,6 +36,7 @@ from atr.evaluation.aggregate import (
     PAPER_T_ERROR_MAX_M,
     PAPER_TABLE_V_STORAGE_KB,
     PAPER_TABLE_V_TIME_S,
+    SCALED_TEMPLATES,
     arm_label,
     compactness,
     median_interval,
@@ -398,10 +399,15 @@ def _f1_table(groups: Mapping[Any, Mapping[str, Mapping[str, Any]]], name: str) 
 
 
 def _best(group: Mapping[str, Mapping[str, Any]], pipeline_prefix: str) -> tuple[str, float] | None:
+    """The arm of a family with the highest F1; a 2D arm with scaled templates is not the paper's and
+    is never a family's best (its own rows show it).
+    """
     cands = [
         (a, v["f1"])
         for a, v in group.items()
-        if a.startswith(pipeline_prefix) and not math.isnan(v["f1"])
+        if a.startswith(pipeline_prefix)
+        and not a.endswith(SCALED_TEMPLATES)
+        and not math.isnan(v["f1"])
     ]
     return max(cands, key=lambda x: x[1]) if cands else None
 
@@ -1037,17 +1043,15 @@ def _requirements_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> 
     stages = {}
     for a, v in sorted(overall.items(), key=lambda x: _arm_sort(x[0])):
         pipeline, descriptor = a.split("/")
-        first = next(r for r in clean if arm_label(r) == a)
+        arm_rows = [r for r in clean if arm_label(r) == a]
+        first = arm_rows[0]
         paper_key = pipeline if pipeline.startswith("2d") else descriptor
         paper_time = (
             PAPER_TABLE_V_TIME_S["2d"].get(pipeline)
             if pipeline.startswith("2d")
             else PAPER_TABLE_V_TIME_S.get(pipeline, {}).get(descriptor)
         )
-        points = [
-            r.get("cloud_points_median")
-            for r in select(clean, pipeline=pipeline, descriptor=descriptor)
-        ]
+        points = [r.get("cloud_points_median") for r in arm_rows]
         points = [p for p in points if p is not None]
         v_rows.append(
             [
@@ -1055,10 +1059,7 @@ def _requirements_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> 
                 _num(first.get("template_storage_kb")),
                 f"*{_num(PAPER_TABLE_V_STORAGE_KB.get(paper_key))}*",
                 _num(v["time_per_scene_ms"] / 1000, ".3f"),
-                _num(
-                    _time_vs_reference(select(clean, pipeline=pipeline, descriptor=descriptor)),
-                    ".1f",
-                ),
+                _num(_time_vs_reference(arm_rows), ".1f"),
                 f"*{_num(paper_time)}*",
                 _num(sum(points) / len(points), ".0f")
                 if points and not pipeline.startswith("2d")
@@ -1083,8 +1084,10 @@ def _requirements_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> 
             v_rows,
         ),
         "",
-        "Template storage: descriptors + keypoint positions of the T-72 template (3D: float32, every view "
-        "the template holds; 2D: all 12 templates' keypoints and descriptors). The paper's 3D figures count "
+        "Template storage: descriptors + keypoint positions of the T-72 template as the template store "
+        "keeps it (3D: every view the template holds, float32 or, with `recognition.compact_descriptors`, "
+        "uint8 codes with a per-row offset and step, as each result's config.json says; 2D: all 12 "
+        "templates' keypoints and descriptors). The paper's 3D figures count "
         "another thing: each equals one descriptor vector in float64, with its local reference frame for "
         "SHOT, USC and 3DSC (`atr.evaluation.aggregate.paper_template_kb`). Time per scene: median over each run's scenes, pooled "
         "weighted by scenes; SfM includes the two-view reconstruction, LIDAR is the matcher alone, 2D is "
@@ -1116,6 +1119,9 @@ def _targets_section(details: Sequence[Mapping[str, Any]]) -> list[str]:
     for arm in sorted({arm_label(r) for r in clean}, key=_arm_sort):
         table = target_table([r for r in clean if arm_label(r) == arm])
         cells = sorted({(c["range_m"], c["obliquity_deg"]) for c in table["cells"]})
+        storage_kb = {
+            r["target"]: r.get("template_storage_kb") for r in clean if arm_label(r) == arm
+        }
         rows = []
         for t in table["targets"]:
             f1 = {
@@ -1130,6 +1136,7 @@ def _targets_section(details: Sequence[Mapping[str, Any]]) -> list[str]:
                     f"{_num(t['f1'])} ({t['tp']}/{t['fp']}/{t['fn']})",
                     _pct(t["fp_on_vehicles_share"]),
                     _num(t["t_error_median_m"]),
+                    _num(storage_kb.get(t["target"]), ".0f"),
                 ]
             )
         for h in table["held_out"]:
@@ -1141,6 +1148,7 @@ def _targets_section(details: Sequence[Mapping[str, Any]]) -> list[str]:
                     f"{_num(h['f1'])} ({h['tp']}/{h['fp']}/{h['fn']})",
                     _pct(h["fp_on_vehicles_share"]),
                     _num(h["t_error_median_m"]),
+                    "–",
                 ]
             )
         header = ["target", *(f"{r:.0f} m {o:.0f}°" for r, o in cells)]
@@ -1149,7 +1157,7 @@ def _targets_section(details: Sequence[Mapping[str, Any]]) -> list[str]:
             f"**{arm}**: F1 per target, range and obliquity; each target with the rest of the family "
             "as confusers.",
             "",
-            _table([*header, "F1 (TP/FP/FN)", "FP on vehicles", "T_error m"], rows),
+            _table([*header, "F1 (TP/FP/FN)", "FP on vehicles", "T_error m", "template KB"], rows),
         ]
     return parts
 
@@ -1918,7 +1926,7 @@ _RUN_KEY = (
     "pipeline",
     "descriptor",
 )
-"""The fields that name one arm's run of one flight."""
+"""The fields that name one arm's run of one flight (with its label: a scaled 2D arm is another arm)."""
 
 
 def latest_rows(results: Sequence[Sequence[Mapping[str, Any]]]) -> list[dict[str, Any]]:
@@ -1928,7 +1936,7 @@ def latest_rows(results: Sequence[Sequence[Mapping[str, Any]]]) -> list[dict[str
     latest: dict[tuple, dict[str, Any]] = {}
     for number, rows in enumerate(results, start=1):
         for row in rows:
-            key = tuple(row.get(k) for k in _RUN_KEY)
+            key = (*(row.get(k) for k in _RUN_KEY), arm_label(row))
             latest.pop(key, None)  # the re-run takes its own place in the order
             latest[key] = dict(row) | {"source": number}
     return list(latest.values())

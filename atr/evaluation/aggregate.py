@@ -127,9 +127,17 @@ OBLIQUITY_CLASS: dict[float, str] = {0.0: "low", 15.0: "low", 30.0: "medium", 45
 """Obliquity classes: 0-15° low (Fig. 5a says 15°, the text 0°), 30° medium, 45° high."""
 
 
+SCALED_TEMPLATES = " scaled"
+"""Label suffix of a 2D arm run with templates at several sizes (`baselines2d.template_scales`), not the
+paper's single-size templates."""
+
+
 def arm_label(row: Mapping[str, Any]) -> str:
-    """Label a row as pipeline/descriptor (e.g. gftt-sfm/shot, 2d-1/gftt+freak)."""
-    return f"{row['pipeline']}/{row['descriptor']}"
+    """Label a row as pipeline/descriptor (e.g. gftt-sfm/shot, 2d-1/gftt+freak; a 2D arm with templates at
+    several sizes gets `SCALED_TEMPLATES`: 2d-1/gftt+freak scaled).
+    """
+    scaled = SCALED_TEMPLATES if len(row.get("template_scales") or ()) > 1 else ""
+    return f"{row['pipeline']}/{row['descriptor']}{scaled}"
 
 
 def pool(

@@ -41,12 +41,13 @@ from atr.evaluation.runner import (
 )
 from atr.evaluation.timing import reference_workload_ms
 from atr.io.mesh import load_mesh, mesh_name, resolve_source
+from atr.recognition.template import message_storage_bytes, template_from_message
 from atr.scaleout import dask_client, host_slots, report, task_slots
 from atr.sim.noise import parse_noise
 from atr.sim.scenarios import TABLE_II
 from atr.sim.scenarios import scenario as scenario_preset
 from atr.sim.vehicles import VEHICLES
-from atr.template_store import TemplateStore, template_from_message
+from atr.template_store import TemplateStore
 
 REPO = Path(__file__).resolve().parents[2]
 # Runs a flight's 3D arms through the service graph: (flight, arms, plan, work folder) -> records per arm.
@@ -123,7 +124,7 @@ class Plan:
     b2d: Any  # Baseline2dConfig
     templates_3d: dict[str, list[Any]] = field(default_factory=dict)
     templates_2d: dict[str, list[Any]] = field(default_factory=dict)
-    storage_kb: dict[tuple[str, str], float] = field(default_factory=dict)
+    storage_kb: dict[tuple[str, ...], float] = field(default_factory=dict)
     reference_ms: dict[Flight, float] = field(default_factory=dict)  # the workload's time
 
 
@@ -249,13 +250,10 @@ def _templates_3d(plan_: Plan) -> None:
             continue
         config = arm_config(plan_.config, arm)
         store = TemplateStore(config, REPO / "templates")
-        templates = [
-            template_from_message(store.message(name, arm.descriptor)) for name in store.meshes
-        ]
-        plan_.templates_3d[arm.descriptor] = templates
-        target = next((t for t in templates if t.target == plan_.flights[0].target), templates[0])
-        kb = (target.descriptors.nbytes + target.keypoints_m.nbytes) / 1024
-        plan_.storage_kb[("3d", arm.descriptor)] = kb
+        messages = {name: store.message(name, arm.descriptor) for name in store.meshes}
+        plan_.templates_3d[arm.descriptor] = [template_from_message(m) for m in messages.values()]
+        for name, message in messages.items():
+            plan_.storage_kb[("3d", arm.descriptor, name)] = message_storage_bytes(message) / 1024
 
 
 _VIEW_FIELDS = (
@@ -317,9 +315,11 @@ def _templates_2d(plan_: Plan, progress: Progress) -> None:
         plan_.storage_kb[("2d", pair)] = template_storage_bytes(plan_.templates_2d[pair]) / 1024
 
 
-def storage_key(arm: Arm) -> tuple[str, str]:
-    """The key of an arm's template storage in `Plan.storage_kb`: (2d, pair) or (3d, descriptor)."""
-    return ("2d", arm.pipeline) if arm.is_2d else ("3d", arm.descriptor)
+def storage_key(arm: Arm, flight: Flight) -> tuple[str, ...]:
+    """The key of the storage of the template a flight's arm looks for in `Plan.storage_kb`: (2d, pair),
+    the T-72's alone, or (3d, descriptor, target).
+    """
+    return ("2d", arm.pipeline) if arm.is_2d else ("3d", arm.descriptor, flight.target)
 
 
 def _reuse_extra(plan_: Plan, flight: Flight, arm: Arm, run_file: Path) -> None:
@@ -328,7 +328,7 @@ def _reuse_extra(plan_: Plan, flight: Flight, arm: Arm, run_file: Path) -> None:
     """
     extra = json.loads(run_file.read_text()).get("extra", {})
     if extra.get("storage_kb") is not None:
-        plan_.storage_kb.setdefault(storage_key(arm), extra["storage_kb"])
+        plan_.storage_kb.setdefault(storage_key(arm, flight), extra["storage_kb"])
     if extra.get("reference_ms") is not None:
         plan_.reference_ms.setdefault(flight, extra["reference_ms"])
 
@@ -496,7 +496,7 @@ class _Runs:
                 key,
                 records,
                 {
-                    "storage_kb": self.plan.storage_kb.get(storage_key(arm)),
+                    "storage_kb": self.plan.storage_kb.get(storage_key(arm, flight)),
                     "reference_ms": reference_ms,
                 },
             )

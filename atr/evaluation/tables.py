@@ -105,6 +105,12 @@ def track_score(
     return score_tracks(truth, tracks, hidden_positions_m=hidden)
 
 
+def _template_scales(arm: Any, plan_: Plan) -> dict[str, list[float]]:
+    """A 2D arm's template sizes when it keeps several (the scaled-templates variant, labelled apart)."""
+    scales = list(plan_.b2d.template_scales)
+    return {"template_scales": scales} if arm.is_2d and len(scales) > 1 else {}
+
+
 def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[dict], list[dict]]:
     """The contract rows (results.json) and the detailed rows (details.json) of every run."""
     contract, details = [], []
@@ -148,7 +154,7 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
                 "track_t_error_median_m": ts.t_error_median_m,
             }
             sc = preset(flight.scenario, flight.run)
-            storage = plan_.storage_kb.get(storage_key(arm))
+            storage = plan_.storage_kb.get(storage_key(arm, flight))
             contract.append(jsonable(row))
             details.append(
                 jsonable(
@@ -174,6 +180,7 @@ def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[d
                         "reference_ms": plan_.reference_ms.get(flight),
                         "false_positives_on": fp_on,
                     }
+                    | _template_scales(arm, plan_)
                 )
             )
     return contract, details

@@ -65,6 +65,10 @@ class TemplateConfig:
         template_distance_m: distance of the HPR viewpoints from the model centre (scenario 1 range, Table II).
         hpr_radius_factor: Open3D HPR spherical-flip radius as a multiple of the viewpoint distance
             (Katz et al. 2007; Open3D's example uses 100 x the diameter).
+        compact_descriptors: the store keeps and serves descriptors as uint8 codes with a per-row offset
+            and step (``template.quantize_descriptors``), a quarter of float32's bytes; the matcher decodes
+            them. Measured on the tuning seeds with no loss of F1 (docs/recognition.md, "Compact
+            templates"); False keeps float32.
 
     """
 
@@ -79,6 +83,7 @@ class TemplateConfig:
     template_azimuths_deg: tuple[float, ...] = tuple(30.0 * i for i in range(12))
     template_distance_m: float = 50.0
     hpr_radius_factor: float = 100.0
+    compact_descriptors: bool = True
 
     def __post_init__(self) -> None:
         """Validate every field; raise ConfigError naming the bad value."""

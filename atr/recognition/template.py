@@ -48,15 +48,25 @@ class Template:
     radius_m: float
     params: dict[str, Any] = field(default_factory=dict)
 
-    def to_dict(self) -> dict[str, Any]:
-        """A dict of numpy arrays and scalars (msgpack-friendly through the project codec)."""
+    def to_dict(self, compact: bool = False) -> dict[str, Any]:
+        """A dict of numpy arrays and scalars (msgpack-friendly through the project codec).
+
+        ``compact`` stores the descriptors as uint8 codes with a per-row offset and step
+        (``quantize_descriptors``): a quarter of the bytes; ``from_dict`` decodes them.
+        """
+        descriptors: dict[str, np.ndarray] = {
+            "descriptors": np.ascontiguousarray(self.descriptors, np.float32)
+        }
+        if compact:
+            codes, low, step = quantize_descriptors(self.descriptors)
+            descriptors = {"descriptors": codes, "descriptor_low": low, "descriptor_step": step}
         return {
             "target": self.target,
             "descriptor": self.descriptor,
             "points_m": np.ascontiguousarray(self.points_m, np.float32),
             "normals": np.ascontiguousarray(self.normals, np.float32),
             "keypoints_m": np.ascontiguousarray(self.keypoints_m, np.float32),
-            "descriptors": np.ascontiguousarray(self.descriptors, np.float32),
+            **descriptors,
             "radius_m": float(self.radius_m),
             "params": dict(self.params),
         }
@@ -71,7 +81,7 @@ class Template:
                 points_m=np.asarray(d["points_m"], np.float32).reshape(-1, 3),
                 normals=np.asarray(d["normals"], np.float32).reshape(-1, 3),
                 keypoints_m=np.asarray(d["keypoints_m"], np.float32).reshape(-1, 3),
-                descriptors=np.asarray(d["descriptors"], np.float32),
+                descriptors=_decoded_descriptors(d),
                 radius_m=float(d["radius_m"]),
                 params=dict(d.get("params", {})),
             )
@@ -116,10 +126,61 @@ class Template:
             for i in range(len(np_))
         ]
 
-    @property
-    def storage_bytes(self) -> int:
-        """Bytes of the descriptors and keypoints (the paper's "template storage", Table V)."""
-        return int(self.descriptors.nbytes + self.keypoints_m.nbytes)
+
+def quantize_descriptors(descriptors: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Descriptors as uint8 codes with a per-row offset and step: row = low + code x step.
+
+    Each row spans its own [min, max] in 255 steps, so the decoded value is within half a step (1/510 of the
+    row's range) of the original; a descriptor's bins keep their order and the nearest-neighbour search its
+    neighbours. Returns codes (K, L) uint8, low (K,) float32, step (K,) float32.
+    """
+    d = np.asarray(descriptors, np.float32)
+    if d.ndim != 2:
+        raise InputError(f"descriptors must be (K, L); got shape {d.shape}")
+    if len(d) == 0:
+        return np.zeros(d.shape, np.uint8), np.zeros(0, np.float32), np.zeros(0, np.float32)
+    low = d.min(axis=1)
+    span = d.max(axis=1) - low
+    step = np.where(span > 0, span / 255.0, 1.0).astype(np.float32)
+    codes = np.rint((d - low[:, None]) / step[:, None])
+    return np.clip(codes, 0, 255).astype(np.uint8), low.astype(np.float32), step
+
+
+def dequantize_descriptors(codes: np.ndarray, low: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """Inverse of ``quantize_descriptors``: (K, L) float32."""
+    c, lo, st = np.asarray(codes), np.asarray(low, np.float32), np.asarray(step, np.float32)
+    if c.ndim != 2 or lo.shape != (len(c),) or st.shape != (len(c),):
+        raise InputError(
+            f"compact descriptors {c.shape} need one offset and one step per row; got {lo.shape}, "
+            f"{st.shape}"
+        )
+    return (lo[:, None] + c.astype(np.float32) * st[:, None]).astype(np.float32)
+
+
+def _decoded_descriptors(d: dict[str, Any]) -> np.ndarray:
+    """A Template dict's descriptors as float32, decoding uint8 codes (``to_dict(compact=True)``)."""
+    descriptors = np.asarray(d["descriptors"])
+    if descriptors.dtype != np.uint8:
+        return descriptors.astype(np.float32)
+    if "descriptor_low" not in d or "descriptor_step" not in d:
+        raise InputError("uint8 template descriptors need descriptor_low and descriptor_step")
+    return dequantize_descriptors(descriptors, d["descriptor_low"], d["descriptor_step"])
+
+
+def template_from_message(message: dict[str, Any]) -> Template:
+    """The Template a Template message describes (what the template store serves), as the matcher uses it:
+    compact descriptors decoded, the message's resolution among the params.
+    """
+    params = message.get("params", {}) | {"resolution_m": message["resolution_m"]}
+    return Template.from_dict(message | {"params": params})
+
+
+def message_storage_bytes(message: dict[str, Any]) -> int:
+    """Bytes of a Template message's descriptors (with their offsets and steps when compact) and keypoints:
+    the template storage a store holds and a link carries for the matching (Table V's quantity).
+    """
+    names = ("descriptors", "descriptor_low", "descriptor_step", "keypoints_m")
+    return int(sum(np.asarray(message[n]).nbytes for n in names if n in message))
 
 
 def sample_mesh_surface(

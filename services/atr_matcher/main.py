@@ -22,16 +22,10 @@ from collections import deque
 import numpy as np
 
 from atr.recognition import Template, recognize
+from atr.recognition.template import template_from_message
 from bus import keys
 from bus.clouds import cloud_points
 from bus.service import effective_config, service_arguments, start_node
-
-
-def template_from_message(message: dict) -> Template:
-    """The Template a Template message describes (what template_store serves), as the matcher uses it."""
-    return Template.from_dict(
-        message | {"params": message.get("params", {}) | {"resolution_m": message["resolution_m"]}}
-    )
 
 
 def _detection(detection: object) -> dict:

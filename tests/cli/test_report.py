@@ -245,6 +245,7 @@ def test_a_result_of_several_targets_gets_a_per_target_table_and_paper_sections_
             "obliquity_deg": 15.0 * run,
             "t_errors_m": [0.1] * tp,
             "false_positives_on": {"t72": outcomes.count("fp")},
+            "template_storage_kb": {"t72": 1900.0, "m109": 2100.4}[target],
         }
 
     rows = [row("t72", 1, ["tp"] * 4), row("m109", 1, ["tp", "fp"]), row("m109", 2, ["fn"] * 2)]
@@ -255,8 +256,9 @@ def test_a_result_of_several_targets_gets_a_per_target_table_and_paper_sections_
     table = {line.strip("| ").split(" | ")[0]: line.strip("| ").split(" | ")[1:] for line in lines}
     assert "m109" in table and "t72 (tuned on)" in table
     # the held-out pool is the M109's alone: 1/1/2 -> F1 2/(2+1+2); one scene of 4 has its FP on a vehicle
-    assert table["held out, all"][-3].startswith("0.40 (1/1/2)")
-    assert table["held out, all"][-2] == "25.0%"
+    assert table["held out, all"][-4].startswith("0.40 (1/1/2)")
+    assert table["held out, all"][-3] == "25.0%"
+    assert table["m109"][-1] == "2100" and table["t72 (tuned on)"][-1] == "1900"  # its own template
     assert _targets_section(rows[:1]) == []  # a single target: no section
 
 
@@ -476,3 +478,33 @@ def test_navigation_errors_are_compared_arm_by_arm_on_the_same_scenes():
     assert cells[2].startswith("94.7% (9/0/1)") and cells[3].startswith("82.4% (7/0/3)")
     assert cells[5] == "0.00 / 1.70"
     assert _navigation_section(exact) == []  # nothing to compare without a nav row
+
+
+def test_scaled_2d_templates_are_an_arm_of_their_own_never_the_papers_2d():
+    single = ["tp"] * 3 + ["fn"] * 17
+    scaled = ["tp"] * 15 + ["fn"] * 5
+    rows = _sfm_and_lidar(sfm_hits=20, lidar_hits=6)
+    for scenario, run_, obliquity in PAPER_RUNS:
+        rows.append(
+            _eval_row("2d-1", "gftt+freak", scenario, run_, single, obliquity_deg=obliquity)
+        )
+        rows.append(
+            _eval_row(
+                "2d-1",
+                "gftt+freak",
+                scenario,
+                run_,
+                scaled,
+                obliquity_deg=obliquity,
+                template_scales=[1.0, 0.5, 0.25],
+            )
+        )
+    assert {arm_label(r) for r in rows if r["pipeline"] == "2d-1"} == {
+        "2d-1/gftt+freak",
+        "2d-1/gftt+freak scaled",
+    }
+    assert len(latest_rows([rows])) == len(rows)  # neither replaces the other
+    medium = _verdict_of(rows, "2D ATR (best pair) F1 at medium")
+    assert medium.ours.endswith(
+        "(2d-1/gftt+freak)"
+    )  # the single-size templates, not the better scaled
