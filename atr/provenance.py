@@ -23,8 +23,10 @@ SOURCE_GLOBS = (
 
 
 def source_commit(root: Path = REPO) -> str:
-    """The git commit of the source tree, with `+dirty` when it has uncommitted changes; empty
-    outside a git checkout.
+    """The git commit of the source tree, with `+dirty` when a source that decides a result
+    (`SOURCE_GLOBS`) has uncommitted changes; empty outside a git checkout.
+
+    Other files (docs, the regression baselines a `--update` is writing) leave it clean.
     """
     if not (root / ".git").exists():
         return ""
@@ -33,7 +35,14 @@ def source_commit(root: Path = REPO) -> str:
             ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10
         )
         dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
+            [
+                "git",
+                "status",
+                "--porcelain",
+                "--untracked-files=no",
+                "--",
+                *(f":(glob){pattern}" for pattern in SOURCE_GLOBS),
+            ],
             cwd=root,
             capture_output=True,
             text=True,
