@@ -139,17 +139,17 @@ def test_unrendered_frame_keeps_imu_and_truth(small_cfg, world_s1r3):
 def test_navigation_fix_errors_wander_with_their_std_and_correlation():
     from atr.sim.config import SimConfig
     from atr.sim.flight import nav_fix_errors
+    from atr.sim.noise import GNSS_INS_ERRORS as E
 
-    cfg = SimConfig(
-        nav_position_sigma_m=1.5,
-        nav_altitude_sigma_m=3.0,
-        nav_velocity_sigma_mps=0.05,
-        nav_tilt_sigma_deg=0.1,
-        nav_heading_sigma_deg=0.3,
-        nav_error_correlation_s=2.0,
-    )
+    cfg = SimConfig(**E, nav_error_correlation_s=2.0)
     e = nav_fix_errors(40000, 0.5, cfg, np.random.default_rng(0))
-    expected = np.r_[1.5, 1.5, 3.0, [0.05] * 3, np.radians([0.1, 0.1, 0.3])]
+    tilt, heading = E["nav_tilt_sigma_deg"], E["nav_heading_sigma_deg"]
+    expected = np.r_[
+        [E["nav_position_sigma_m"]] * 2,
+        E["nav_altitude_sigma_m"],
+        [E["nav_velocity_sigma_mps"]] * 3,
+        np.radians([tilt, tilt, heading]),
+    ]
     assert np.allclose(e.std(axis=0), expected, rtol=0.05)
     lag1 = [np.corrcoef(e[:-1, i], e[1:, i])[0, 1] for i in range(9)]
     assert np.allclose(lag1, np.exp(-0.5 / 2.0), atol=0.02)  # Gauss-Markov, not white
