@@ -122,6 +122,16 @@ class SfmConfig:
     matching")."""
     sgm_block_px: int = bounded(5, ge=1, odd=True)
     """Matching block side (px, odd); OpenCV's documented 3-11 range, small for a small target."""
+    k_sgm_small_jump_penalty: float = bounded(2.0, gt=0)
+    """Semi-global matching's penalty P1 for a disparity change of one pixel between neighbours, as a
+    multiple of the block area (px^2; OpenCV documents 8). The smoothness term pulls a small target's
+    disparities towards those of the farther background around it: at 8 (and P2 at 32) the T-72's points
+    at 100 m came out 0.14-0.23 px (matching scale) too small, 0.15-0.39 m too far, while the ground was
+    unbiased; at 2 (and 8) 0.03-0.08 px, with no more noise. 1 (and 4) biases less still but flips more
+    headings at 0 deg obliquity (tuning seed; tests/sfm/test_simulated.py)."""
+    k_sgm_large_jump_penalty: float = bounded(8.0, gt=0)
+    """Penalty P2 for a larger disparity change (a depth edge), as a multiple of the block area (px^2);
+    OpenCV documents 32. Must exceed k_sgm_small_jump_penalty (OpenCV refuses P2 <= P1)."""
     sgm_uniqueness_percent: int = bounded(10, ge=0)
     """The best disparity's cost must beat the second best by this margin (%); OpenCV advises 5-15."""
     sgm_left_right_px: int = bounded(1, ge=1)
@@ -171,6 +181,11 @@ class SfmConfig:
         if self.matcher not in ("gftt", "surf", "sgm"):
             raise ConfigError(f"matcher {self.matcher!r} must be 'gftt', 'surf' or 'sgm'")
         check_fields(self)
+        if self.k_sgm_large_jump_penalty <= self.k_sgm_small_jump_penalty:
+            raise ConfigError(
+                f"k_sgm_large_jump_penalty {self.k_sgm_large_jump_penalty} must exceed "
+                f"k_sgm_small_jump_penalty {self.k_sgm_small_jump_penalty}"
+            )
 
     @property
     def max_reprojection_px(self) -> float:

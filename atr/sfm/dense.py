@@ -163,9 +163,10 @@ def _semi_global_disparity(
         minDisparity=0,
         numDisparities=n_disparities,
         blockSize=block,
-        # OpenCV's documented smoothness penalties for one channel: 8 and 32 x the block area
-        P1=8 * block * block,
-        P2=32 * block * block,
+        # smoothness penalties per block area; OpenCV's documented 8 and 32 bias a small target's
+        # disparities towards its background (k_sgm_small_jump_penalty)
+        P1=int(round(config.k_sgm_small_jump_penalty * block * block)),
+        P2=int(round(config.k_sgm_large_jump_penalty * block * block)),
         uniquenessRatio=config.sgm_uniqueness_percent,
         speckleWindowSize=config.sgm_speckle_window_px,
         speckleRange=2,

@@ -12,6 +12,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from _poses import look_at  # noqa: E402
 
+from atr.errors import ConfigError
 from atr.sfm import SfmConfig, reconstruct
 from atr.sfm.correspondences import as_gray_u8
 from atr.sfm.dense import sgm_correspondences
@@ -173,3 +174,11 @@ def test_the_search_reaches_the_nearest_ground_the_image_sees(plane_scene) -> No
     err_ = np.linalg.norm(pb_ - true_pixel_in_b(plane_scene, pa_, T_a, T_b), axis=1)
     assert len(pa_) > 0.5 * stats_["keypoints"]
     assert np.sum(err_ < 2.0) < 0.5 * len(pa_)
+
+
+@pytest.mark.parametrize(("small", "large"), [(8.0, 8.0), (8.0, 2.0)])
+def test_a_large_jump_penalty_not_above_the_small_one_is_refused(
+    small: float, large: float
+) -> None:
+    with pytest.raises(ConfigError, match="k_sgm_large_jump_penalty"):
+        SfmConfig(k_sgm_small_jump_penalty=small, k_sgm_large_jump_penalty=large)
