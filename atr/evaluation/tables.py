@@ -111,6 +111,26 @@ def _template_scales(arm: Any, plan_: Plan) -> dict[str, list[float]]:
     return {"template_scales": scales} if arm.is_2d and len(scales) > 1 else {}
 
 
+_OUTPUT_OPTIONS = ("--results", "--json")
+"""Options that say where results are written: they decide nothing in them."""
+
+
+def _without_outputs(argv: Sequence[str]) -> list[str]:
+    """The command line without the options that name where results go (`_OUTPUT_OPTIONS`), so that a
+    result committed elsewhere names no folder of the machine it ran on.
+    """
+    out: list[str] = []
+    skip = False
+    for arg in argv:
+        if skip:
+            skip = False
+        elif arg in _OUTPUT_OPTIONS:
+            skip = True
+        elif not arg.startswith(tuple(f"{o}=" for o in _OUTPUT_OPTIONS)):
+            out.append(arg)
+    return out
+
+
 def rows(plan_: Plan, results: dict[tuple[Any, Any], list[Any]]) -> tuple[list[dict], list[dict]]:
     """The contract rows (results.json) and the detailed rows (details.json) of every run."""
     contract, details = [], []
@@ -207,7 +227,7 @@ def write_outputs(
         json.dumps(
             jsonable(
                 {
-                    "command": ["atr", "eval", *argv],
+                    "command": ["atr", "eval", *_without_outputs(argv)],
                     "code_version": plan_.version,
                     "overrides": plan_.overrides,
                     "atr": to_dict(plan_.config),

@@ -100,6 +100,10 @@ def test_results_folder_and_resume(evaluated):
     assert latest.is_symlink()
     config = json.loads((latest / "config.json").read_text())
     assert config["atr"]["sim"]["width_px"] == 640 and config["code_version"]
+    # the command that made it, without the files it wrote to (no machine path in a result)
+    assert config["command"][:4] == ["atr", "eval", "--scenario", "1"]
+    assert "--results" not in config["command"] and "--json" not in config["command"]
+    assert str(root) not in " ".join(config["command"])
     assert "0 current results reused" in first.stderr
     assert "1 current results reused" in second.stderr
     assert (
