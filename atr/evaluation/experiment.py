@@ -316,8 +316,8 @@ def _templates_2d(plan_: Plan, progress: Progress) -> None:
 
 
 def storage_key(arm: Arm, flight: Flight) -> tuple[str, ...]:
-    """The key of the storage of the template a flight's arm looks for in `Plan.storage_kb`: (2d, pair),
-    the T-72's alone, or (3d, descriptor, target).
+    """The key in `Plan.storage_kb` of the template a flight's arm looks for: (2d, pair), whose templates
+    are cropped from one flight whatever the target, or (3d, descriptor, target).
     """
     return ("2d", arm.pipeline) if arm.is_2d else ("3d", arm.descriptor, flight.target)
 

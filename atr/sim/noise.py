@@ -42,6 +42,7 @@ class NoiseSpec:
         shot: Poisson shot noise on images and LIDAR ranges.
         gaussian_sigma_m: Gaussian sigma, metres (0: none); images use it as a fraction of full
         scale.
+        navigation: the navigation fix gets `GNSS_INS_ERRORS` (``with_navigation_errors``).
 
     """
 
