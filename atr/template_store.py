@@ -21,7 +21,11 @@ import numpy as np
 from atr.config import AtrConfig
 from atr.io.mesh import load_mesh
 from atr.recognition import DESCRIPTORS, build_template
-from atr.recognition.template import TEMPLATE_VERSION, message_storage_bytes
+from atr.recognition.template import (
+    DESCRIPTOR_ARRAYS,
+    TEMPLATE_VERSION,
+    message_storage_bytes,
+)
 from atr.sim.vehicles import VEHICLES
 
 log = logging.getLogger("atr")
@@ -90,7 +94,7 @@ class TemplateStore:
             "points_m": data["points_m"],
             "normals": data["normals"],
             "keypoints_m": data["keypoints_m"],
-            **{n: data[n] for n in _DESCRIPTOR_ARRAYS if n in data},
+            **{n: data[n] for n in DESCRIPTOR_ARRAYS if n in data},
             "params": json.loads(json.dumps(data["params"], default=str)),
         }
         self.cache_dir.mkdir(parents=True, exist_ok=True)
@@ -105,8 +109,7 @@ class TemplateStore:
         return message
 
 
-_DESCRIPTOR_ARRAYS = ("descriptors", "descriptor_low", "descriptor_step")
-_ARRAYS = ("points_m", "normals", "keypoints_m", *_DESCRIPTOR_ARRAYS)
+_ARRAYS = ("points_m", "normals", "keypoints_m", *DESCRIPTOR_ARRAYS)
 
 
 def _save(path: Path, message: dict) -> None:

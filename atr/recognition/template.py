@@ -22,6 +22,9 @@ from atr.recognition.steps import uniform_subsample
 TEMPLATE_VERSION = 2
 """Bumped whenever the template recipe changes, so that caches keyed by parameters are invalidated."""
 
+DESCRIPTOR_ARRAYS = ("descriptors", "descriptor_low", "descriptor_step")
+"""A Template dict's descriptor arrays: the rows, and their offsets and steps when compact."""
+
 
 @dataclass
 class Template:
@@ -179,7 +182,7 @@ def message_storage_bytes(message: dict[str, Any]) -> int:
     """Bytes of a Template message's descriptors (with their offsets and steps when compact) and keypoints:
     the template storage a store holds and a link carries for the matching (Table V's quantity).
     """
-    names = ("descriptors", "descriptor_low", "descriptor_step", "keypoints_m")
+    names = (*DESCRIPTOR_ARRAYS, "keypoints_m")
     return int(sum(np.asarray(message[n]).nbytes for n in names if n in message))
 
 
