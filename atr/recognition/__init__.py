@@ -1,5 +1,6 @@
 """3D ATR module (paper §II-A offline templates, §II-B-2 online matcher): pure functions on numpy arrays."""
 
+from atr.recognition.competition import Candidate, CompetitionSettings, compete_for_places
 from atr.recognition.config import (
     DESCRIPTORS,
     GroundConfig,
@@ -13,7 +14,6 @@ from atr.recognition.matcher import (
     Detection,
     RecognitionResult,
     recognize,
-    suppress_non_maxima,
 )
 from atr.recognition.steps import (
     Correspondences,
@@ -29,6 +29,7 @@ from atr.recognition.steps import (
     filter_smooth_surfaces,
     group_geometrically_consistent,
     group_upright_hough,
+    inside_model_box,
     knndr_from_distances,
     match_knndr,
     ransac_per_group,
@@ -48,6 +49,8 @@ from atr.recognition.template import (
 __all__ = [
     "DESCRIPTORS",
     "STAGES",
+    "Candidate",
+    "CompetitionSettings",
     "Correspondences",
     "Detection",
     "GroundConfig",
@@ -64,7 +67,9 @@ __all__ = [
     "VerifySettings",
     "YawWindow",
     "build_template",
+    "compete_for_places",
     "filter_smooth_surfaces",
+    "inside_model_box",
     "descriptor_sq_distances",
     "drop_repeated_hypotheses",
     "group_geometrically_consistent",
@@ -78,7 +83,6 @@ __all__ = [
     "recognize",
     "rigid_transform",
     "sample_mesh_surface",
-    "suppress_non_maxima",
     "terrain_height_at",
     "template_from_points",
     "uniform_subsample",

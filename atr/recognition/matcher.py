@@ -11,12 +11,13 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from atr.recognition import _backend, steps
+from atr.recognition.competition import Candidate, CompetitionSettings, compete_for_places
 from atr.recognition.config import MatcherConfig, RecognitionConfig
 from atr.recognition.scene import (
     EmptyScene,
@@ -175,7 +176,20 @@ def recognize(
     search = _Search(scene, config, rng, clock)
     stats["templates"] = [search.find(tpl) for tpl in templates]
     stats["verified"] = search.verified
-    detections = suppress_non_maxima(search.candidates, config.nms_m)
+    winners = compete_for_places(
+        [candidate for _, candidate in search.candidates],
+        scene.surface,
+        CompetitionSettings(
+            nms_m=config.nms_m,
+            overlap_m=config.overlap_m,
+            k_clutter_sigma=config.matcher.k_clutter_sigma,
+            ground_slab_m=config.ground_slab_m,
+        ),
+    )
+    detections = sorted(
+        (replace(search.candidates[i][0], score=score) for i, score in winners),
+        key=lambda d: -d.score,
+    )
     stats["detections"] = len(detections)
     return RecognitionResult(detections, clock.result(), stats)
 
@@ -189,7 +203,7 @@ class _Search:
         self.scene, self.config, self.rng, self.clock = scene, config, rng, clock
         self.ground = GroundCheck(scene, config)
         self.described: dict[tuple[str, float], np.ndarray] = {}
-        self.candidates: list[tuple[Detection, np.ndarray, float]] = []
+        self.candidates: list[tuple[Detection, Candidate]] = []
         self.verified: list[tuple] = []
 
     def find(self, tpl: Template) -> dict[str, Any]:
@@ -306,6 +320,7 @@ class _Search:
             icp_reach_m=c.icp_reach_m,
         )
         model_all = np.asarray(tpl.points_m, np.float64)
+        model = steps.PointSet(model_all)  # the whole model: what explains the scene at a place
         extent = model_extent_m(tpl)
         view_models: dict[int, steps.PointSet] = {}
         accepted = 0
@@ -333,12 +348,21 @@ class _Search:
                     target=tpl.target,
                     descriptor=tpl.descriptor,
                     T_world_target=T_world_target,
-                    score=float(v.overlap_vertices * (1.0 - v.clutter)),
+                    score=0.0,  # the place competition's score, once every template is verified
                     overlap=float(v.overlap),
                     inliers=int(h.inliers),
                 )
-                centre_w = v.T_scene_model[:3, :3] @ model_all.mean(axis=0) + v.T_scene_model[:3, 3]
-                self.candidates.append((det, centre_w, extent))
+                centre_m = v.T_scene_model[:3, :3] @ model_all.mean(axis=0) + v.T_scene_model[:3, 3]
+                candidate = Candidate(
+                    target=tpl.target,
+                    model=model,
+                    T_scene_model=v.T_scene_model,
+                    centre_m=centre_m,
+                    extent_m=extent,
+                    support=float(v.overlap),
+                    strength=float(v.overlap_vertices * (1.0 - v.clutter)),
+                )
+                self.candidates.append((det, candidate))
         return accepted
 
 
@@ -404,34 +428,3 @@ def _match_views(
                 out[v] = Correspondences(rows[c.scene], c.model, c.distance)
                 start += n
     return out
-
-
-def suppress_non_maxima(
-    candidates: Sequence[tuple[Detection, np.ndarray, float]], nms_m: float
-) -> list[Detection]:
-    """Keep the best-scoring detection per location, across targets.
-
-    Two candidates are at one location when their target centres are closer than
-    max(``nms_m``, half the larger target extent).
-
-    Args:
-        candidates: (detection, world centre (3,), target extent metres) triples.
-        nms_m: minimum suppression distance, metres.
-
-    Returns:
-        Kept detections, best score first (ties keep input order).
-
-    """
-    order = sorted(range(len(candidates)), key=lambda i: -candidates[i][0].score)
-    kept: list[int] = []
-    for i in order:
-        _, ci, ei = candidates[i]
-        clash = False
-        for j in kept:
-            _, cj, ej = candidates[j]
-            if np.linalg.norm(ci - cj) < max(nms_m, 0.5 * max(ei, ej)):
-                clash = True
-                break
-        if not clash:
-            kept.append(i)
-    return [candidates[i][0] for i in kept]

@@ -695,9 +695,7 @@ def verify_with_icp(
     if near:
         near_idx = np.sort(near)
         local = (np.asarray(scene_points)[near_idx] - t) @ R  # R^T (p - t)
-        box_lo = lo.copy()
-        box_lo[2] += settings.ground_slab_m
-        inside = np.all((local >= box_lo) & (local <= hi), axis=1)
+        inside = inside_model_box(local, np.eye(4), lo, hi, settings.ground_slab_m)
         inside_local = local[inside]
         explain_m = np.full(len(inside_local), overlap_m)
         if scene.sigma_m is not None:
@@ -720,6 +718,29 @@ def verify_with_icp(
         dm, _ = model_tree.query(inside_local, distance_upper_bound=float(explain_m.max()))
         clutter = float(np.mean(~(dm <= explain_m)))
     return Verification(T, n_hit / max(len(model_points), 1), n_hit, clutter, rmse)
+
+
+def inside_model_box(
+    points_m: np.ndarray,
+    T_scene_model: np.ndarray,
+    lo_m: np.ndarray,
+    hi_m: np.ndarray,
+    ground_slab_m: float,
+) -> np.ndarray:
+    """(N,) bool: which scene points lie inside the placed model's box, above its bottom slab.
+
+    Args:
+        points_m: (N, 3) scene points.
+        T_scene_model: (4, 4) model pose in the scene.
+        lo_m, hi_m: (3,) the box corners in the model frame.
+        ground_slab_m: the box's bottom this high is left out (the ground the target stands on).
+
+    """
+    R, t = T_scene_model[:3, :3], T_scene_model[:3, 3]
+    local = (np.asarray(points_m, np.float64) - t) @ R  # R^T (p - t)
+    box_lo = np.array(lo_m, np.float64)
+    box_lo[2] += ground_slab_m
+    return np.all((local >= box_lo) & (local <= hi_m), axis=1)
 
 
 def _refine_with_icp(

@@ -1,0 +1,147 @@
+"""Which template a scene place belongs to: templates compete for the scene vertices they contest (ours).
+
+The paper matches one template and accepts a hypothesis on its overlap alone (§II-B-2). With a family of
+templates, several verified hypotheses of different vehicles sit on one place, and the place must go to
+the template that fits it best. Counting the overlapping vertices favours the larger template (more
+vertices land near a vehicle-sized blob); the share of its own vertices the scene supports favours the
+smaller one (a car fits inside a tank). PCL's global hypothesis verification weighs both sides, the model
+explained by the scene and the scene explained by the model; this is that idea per place:
+
+- the place is the candidates whose centres lie within ``nms_m`` (or half the larger target's extent) of
+  the strongest candidate, and the contested scene vertices are those inside any of their boxes (above
+  the ground slab);
+- *support*: the share of the template's visible vertices with a scene vertex near them (the overlap
+  ``verify_with_icp`` measured);
+- *explanation*: the share of the contested scene vertices that lie near the template's surface, within
+  max(overlap distance, ``k_clutter_sigma`` x the vertex's sigma) as in the clutter measure;
+- the place goes to the candidate with the highest harmonic mean of the two (an F-measure).
+
+Measured on the tuned-on targets (docs/evaluation/targets.md): the T-72 among the whole family
+0.09 -> 0.80 F1, pooled 0.49 -> 0.75; a margin over the runner-up only cost detections.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from atr.recognition.steps import PointSet, inside_model_box
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One verified, accepted hypothesis, as the place competition sees it.
+
+    Attributes:
+        target: the template's target name.
+        model: the template's whole model in its own frame (its kd-tree answers "near the surface").
+        T_scene_model: (4, 4) pose after ICP.
+        centre_m: (3,) the placed model's centroid, scene frame.
+        extent_m: the model's extent (``model_extent_m``), metres.
+        support: share of the hypothesis's visible model vertices the scene supports (its overlap).
+        strength: supported vertices x (1 - clutter): orders the places, strongest first.
+
+    """
+
+    target: str
+    model: PointSet
+    T_scene_model: np.ndarray
+    centre_m: np.ndarray
+    extent_m: float
+    support: float
+    strength: float
+
+
+@dataclass(frozen=True)
+class CompetitionSettings:
+    """Distances of the place competition (``compete_for_places``).
+
+    Attributes:
+        nms_m: candidates closer than max(this, half the larger extent) are at one place, metres.
+        overlap_m: a scene vertex is explained within this distance of the model's surface, metres.
+        k_clutter_sigma: ... or within this x its sigma, when larger.
+        ground_slab_m: the bottom of each box ignored (the ground is never part of a model), metres.
+
+    """
+
+    nms_m: float
+    overlap_m: float
+    k_clutter_sigma: float
+    ground_slab_m: float
+
+
+def compete_for_places(
+    candidates: Sequence[Candidate], scene: PointSet, settings: CompetitionSettings
+) -> list[tuple[int, float]]:
+    """Give each place to the candidate that explains it best.
+
+    Args:
+        candidates: the accepted hypotheses of every template.
+        scene: the scene vertices the hypotheses were verified on (with their sigma, if any).
+        settings: place and explanation distances.
+
+    Returns:
+        (candidate index, score) of each place's winner, strongest place first; score is the F-measure
+        of support and explanation, in [0, 1].
+
+    """
+    order = sorted(range(len(candidates)), key=lambda i: -candidates[i].strength)
+    taken = np.zeros(len(candidates), bool)
+    winners: list[tuple[int, float]] = []
+    for seed in order:
+        if taken[seed]:
+            continue
+        members = [
+            i
+            for i in order
+            if not taken[i] and _same_place(candidates[seed], candidates[i], settings)
+        ]
+        taken[members] = True
+        idx = np.unique(
+            np.concatenate([_inside(candidates[i], scene, settings.ground_slab_m) for i in members])
+        )
+        # each template's strongest pose here enters (the paper's overlap picks among one template's poses)
+        entrants: list[int] = []
+        for i in members:  # strongest first
+            if all(candidates[j].target != candidates[i].target for j in entrants):
+                entrants.append(i)
+        scores = [_f_measure(candidates[i], scene, idx, settings) for i in entrants]
+        best = int(np.argmax(scores))  # the first of equals: the stronger candidate
+        winners.append((entrants[best], scores[best]))
+    return winners
+
+
+def _same_place(a: Candidate, b: Candidate, settings: CompetitionSettings) -> bool:
+    reach_m = max(settings.nms_m, 0.5 * max(a.extent_m, b.extent_m))
+    return bool(np.linalg.norm(a.centre_m - b.centre_m) < reach_m)
+
+
+def _inside(c: Candidate, scene: PointSet, ground_slab_m: float) -> np.ndarray:
+    """Indices of the scene vertices inside the candidate's box, above its ground slab."""
+    lo, hi = c.model.points_m.min(0), c.model.points_m.max(0)
+    R, t = c.T_scene_model[:3, :3], c.T_scene_model[:3, 3]
+    near = scene.tree.query_ball_point(
+        R @ (0.5 * (lo + hi)) + t, 0.5 * float(np.linalg.norm(hi - lo))
+    )
+    near = np.asarray(sorted(near), np.int64)
+    inside = inside_model_box(scene.points_m[near], c.T_scene_model, lo, hi, ground_slab_m)
+    return near[inside]
+
+
+def _f_measure(
+    c: Candidate, scene: PointSet, idx: np.ndarray, settings: CompetitionSettings
+) -> float:
+    """Harmonic mean of the candidate's support and its share of the contested vertices explained."""
+    explanation = 0.0
+    if len(idx):
+        R, t = c.T_scene_model[:3, :3], c.T_scene_model[:3, 3]
+        local = (scene.points_m[idx] - t) @ R  # R^T (p - t): into the model frame
+        reach_m = np.full(len(idx), settings.overlap_m)
+        if scene.sigma_m is not None:
+            reach_m = np.maximum(reach_m, settings.k_clutter_sigma * scene.sigma_m[idx])
+        d, _ = c.model.tree.query(local, distance_upper_bound=float(reach_m.max()))
+        explanation = float(np.mean(d <= reach_m))
+    total = c.support + explanation
+    return 2.0 * c.support * explanation / total if total > 0 else 0.0
