@@ -182,7 +182,6 @@ def recognize(
         CompetitionSettings(
             nms_m=config.nms_m,
             overlap_m=config.overlap_m,
-            k_clutter_sigma=config.matcher.k_clutter_sigma,
             ground_slab_m=config.ground_slab_m,
         ),
     )

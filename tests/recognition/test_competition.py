@@ -6,7 +6,7 @@ import numpy as np
 
 from atr.recognition import Candidate, CompetitionSettings, PointSet, compete_for_places
 
-SETTINGS = CompetitionSettings(nms_m=2.0, overlap_m=0.1, k_clutter_sigma=2.0, ground_slab_m=0.1)
+SETTINGS = CompetitionSettings(nms_m=2.0, overlap_m=0.1, ground_slab_m=0.1)
 
 
 def box_surface(
