@@ -1,9 +1,10 @@
 """Online phase of the 3D ATR module (paper §II-B-2): recognise templates in a scene point cloud.
 
 ``recognize`` reads as the paper's list of steps and ours; each step is a named function in
-``atr.recognition.steps`` (the paper's) or ``atr.recognition.scene`` (ours: ground, views, headings). Several templates (the T-72 and its confusers) are matched against one scene
-description, and where hypotheses of different targets overlap only the best-scoring one is reported, so the
-output says *which* target is there, not only that something is.
+``atr.recognition.steps`` (the paper's) or ``atr.recognition.scene`` (ours: ground, views, headings).
+Several templates (the target and its look-alikes) are matched against one scene description, and where
+hypotheses of different targets share a place it goes to the template that explains it best
+(``atr.recognition.competition``), so the output says *which* target is there, not only that something is.
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ STAGES: tuple[str, ...] = (
     "group",
     "ransac",
     "icp",
+    "compete",
 )
 """Keys of ``RecognitionResult.stage_times_ms`` (plus "total")."""
 
@@ -132,7 +134,7 @@ def recognize(
     Steps: uniform subsampling -> (ground vehicles: ground removal) -> normals (plane fit on
     ``normal_k`` neighbours) -> smooth-surface filter -> per template: description with its descriptor ->
     kNNDR matching per view -> grouping -> RANSAC per group -> ICP verification and acceptance ->
-    non-maximum suppression across targets.
+    the place competition across targets.
 
     Args:
         scene_points_m: (N, 3) world-frame scene points, metres. Non-finite rows are dropped (counted in
@@ -176,15 +178,16 @@ def recognize(
     search = _Search(scene, config, rng, clock)
     stats["templates"] = [search.find(tpl) for tpl in templates]
     stats["verified"] = search.verified
-    winners = compete_for_places(
-        [candidate for _, candidate in search.candidates],
-        scene.surface,
-        CompetitionSettings(
-            nms_m=config.nms_m,
-            overlap_m=config.overlap_m,
-            ground_slab_m=config.ground_slab_m,
-        ),
-    )
+    with clock.stage("compete"):
+        winners = compete_for_places(
+            [candidate for _, candidate in search.candidates],
+            scene.surface,
+            CompetitionSettings(
+                nms_m=config.nms_m,
+                overlap_m=config.overlap_m,
+                ground_slab_m=config.ground_slab_m,
+            ),
+        )
     detections = sorted(
         (replace(search.candidates[i][0], score=score) for i, score in winners),
         key=lambda d: -d.score,
