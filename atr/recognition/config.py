@@ -165,8 +165,8 @@ class MatcherConfig:
             is not clutter (measured in docs/recognition.md).
         k_ground_slab: the bottom of the model's box, this / resolution high, is ignored by the clutter measure
             (the ground under and around the target is not part of the model).
-        k_nms: hypotheses whose target centres are closer than this / resolution are one location; only the
-            best-scoring target is reported there (recognition between the T-72 and its confusers).
+        k_nms: hypotheses whose target centres are closer than this / resolution (or half the larger
+            target) are one place, and the place goes to one template (``atr.recognition.competition``).
 
     """
 

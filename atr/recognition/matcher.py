@@ -60,7 +60,8 @@ class Detection:
         target: template target name.
         descriptor: descriptor that found it.
         T_world_target: (4, 4) float64, maps target-frame (template) coordinates into the scene's world frame.
-        score: overlapping model vertices x (1 - clutter) after ICP (higher is better; compares targets).
+        score: the place competition's F-measure of support and explanation, in [0, 1] (higher is better;
+            compares targets and places; ``atr.recognition.competition``).
         overlap: fraction of the template's vertices with a scene vertex within the overlap distance.
         inliers: RANSAC inlier correspondences of the winning hypothesis.
 
