@@ -37,6 +37,7 @@ class Candidate:
     Attributes:
         target: the template's target name.
         model: the template's whole model in its own frame (its kd-tree answers "near the surface").
+        box_lo_m, box_hi_m: (3,) corners of the model's box in its own frame.
         T_scene_model: (4, 4) pose after ICP.
         centre_m: (3,) the placed model's centroid, scene frame.
         extent_m: the model's extent (``model_extent_m``), metres.
@@ -47,6 +48,8 @@ class Candidate:
 
     target: str
     model: PointSet
+    box_lo_m: np.ndarray
+    box_hi_m: np.ndarray
     T_scene_model: np.ndarray
     centre_m: np.ndarray
     extent_m: float
@@ -118,7 +121,7 @@ def _same_place(a: Candidate, b: Candidate, settings: CompetitionSettings) -> bo
 
 def _inside(c: Candidate, scene: PointSet, ground_slab_m: float) -> np.ndarray:
     """Indices of the scene vertices inside the candidate's box, above its ground slab."""
-    lo, hi = c.model.points_m.min(0), c.model.points_m.max(0)
+    lo, hi = c.box_lo_m, c.box_hi_m
     R, t = c.T_scene_model[:3, :3], c.T_scene_model[:3, 3]
     near = scene.tree.query_ball_point(
         R @ (0.5 * (lo + hi)) + t, 0.5 * float(np.linalg.norm(hi - lo))

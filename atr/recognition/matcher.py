@@ -313,6 +313,8 @@ class _Search:
         self, tpl: Template, views: TemplateViews, hyps: list[tuple[int, Hypothesis]]
     ) -> int:
         """ICP verification and acceptance (§II-B-2 overlap, our clutter and ground rules)."""
+        if not hyps:
+            return 0
         c, m = self.config, self.config.matcher
         settings = steps.VerifySettings(
             icp_gate_m=c.icp_gate_m,
@@ -324,6 +326,8 @@ class _Search:
         )
         model_all = np.asarray(tpl.points_m, np.float64)
         model = steps.PointSet(model_all)  # the whole model: what explains the scene at a place
+        box_lo_m, box_hi_m = model_all.min(axis=0), model_all.max(axis=0)
+        centroid_m = model_all.mean(axis=0)
         extent = model_extent_m(tpl)
         view_models: dict[int, steps.PointSet] = {}
         accepted = 0
@@ -355,10 +359,12 @@ class _Search:
                     overlap=float(v.overlap),
                     inliers=int(h.inliers),
                 )
-                centre_m = v.T_scene_model[:3, :3] @ model_all.mean(axis=0) + v.T_scene_model[:3, 3]
+                centre_m = v.T_scene_model[:3, :3] @ centroid_m + v.T_scene_model[:3, 3]
                 candidate = Candidate(
                     target=tpl.target,
                     model=model,
+                    box_lo_m=box_lo_m,
+                    box_hi_m=box_hi_m,
                     T_scene_model=v.T_scene_model,
                     centre_m=centre_m,
                     extent_m=extent,

@@ -33,6 +33,8 @@ def candidate(target: str, model_m: np.ndarray, scene: PointSet, strength: float
     return Candidate(
         target=target,
         model=PointSet(model_m),
+        box_lo_m=model_m.min(0),
+        box_hi_m=model_m.max(0),
         T_scene_model=np.eye(4),
         centre_m=model_m.mean(0),
         extent_m=float(np.linalg.norm(model_m.max(0) - model_m.min(0))),
