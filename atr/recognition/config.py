@@ -232,6 +232,14 @@ class GroundConfig:
             percentile of the lowest points and stands 0.1-0.3 m below the ground at 100 m; ICP leaves the
             vehicle 0.1-0.3 m low too (docs/recognition.md, "Placing the vehicle on the ground").
         min_place_points: fewer ground points than this within the radius leave the ICP height as it is.
+        attention: take keypoints only where a vehicle can stand (``atr.recognition.attention``): in
+            blobs of the height band, on columns no taller than the tallest template, whose footprint
+            is vehicle-sized. Off: on the tuning seed it drops a quarter of the keypoints but only ~3 %
+            of the time, with the same F1 (docs/recognition.md, "Attention").
+        k_attention_cell: the attention grid's cell / resolution (0.6 m: finer than the gap between two
+            parked vehicles).
+        k_attention_footprint: a blob is searched when its footprint's diagonal is at most this times
+            the largest template's (length + width: its diagonal at the worst heading on the grid).
 
     """
 
@@ -244,6 +252,9 @@ class GroundConfig:
     k_terrain_step: float = 5.0
     k_place_radius: float = 27.0
     min_place_points: int = 20
+    attention: bool = False
+    k_attention_cell: float = 2.0
+    k_attention_footprint: float = 1.5
 
     def __post_init__(self) -> None:
         """Validate every field; raise ConfigError naming the bad value."""

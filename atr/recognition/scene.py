@@ -13,6 +13,7 @@ from scipy.spatial import cKDTree
 
 from atr.errors import ConfigError, InputError
 from atr.recognition import _backend
+from atr.recognition.attention import AttentionSizes, largest_footprint_m, vehicle_blobs
 from atr.recognition.config import RecognitionConfig
 from atr.recognition.ground import height_above_ground, lowest_per_cell, terrain_height_at
 from atr.recognition.steps import (
@@ -153,6 +154,17 @@ def remove_ground(
     stats["above_ground_points"] = int(above.sum())
     if above.sum() < config.template.normal_k + 1:
         raise EmptyScene(f"only {int(above.sum())} scene vertices stand above the ground")
+    if g.attention:
+        cell_m = g.k_attention_cell * res_m
+        sizes = AttentionSizes(
+            cell_m=cell_m,
+            top_m=top + config.ground_cut_m + cell_m,  # a cell of slack for depth noise on a roof
+            footprint_m=g.k_attention_footprint
+            * max(largest_footprint_m(tpl.points_m) for tpl in templates),
+        )
+        stats["band_points"] = int(band.sum())
+        band = vehicle_blobs(surface[above], height, band, sizes)
+        stats["attended_points"] = int(band.sum())
     return Scene(
         PointSet(surface[above], sigma),
         scene.viewpoint_m,

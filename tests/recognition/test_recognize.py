@@ -105,6 +105,20 @@ def test_t72_recognised_within_2m(vehicles, templates):
     assert np.linalg.norm(best.T_world_target[:3, 3] - T[:3, 3]) < 2.0
 
 
+def test_attention_keeps_the_t72_and_searches_fewer_keypoints(vehicles, templates):
+    cfg, tpls = templates
+    scene, T = _scene(vehicles, "t72")
+    plain = recognize(scene, tpls, cfg, seed=0, viewpoint_m=VIEWPOINT)
+    cued = recognize(
+        scene, tpls, dataclasses.replace(cfg, attention=True), seed=0, viewpoint_m=VIEWPOINT
+    )
+    assert cued.stats["attended_points"] < cued.stats["band_points"]
+    assert cued.stats["keypoints"] < plain.stats["keypoints"]
+    best = cued.detections[0]
+    assert best.target == "t72"
+    assert np.linalg.norm(best.T_world_target[:3, 3] - T[:3, 3]) < 2.0
+
+
 def test_scene_without_target_yields_no_t72(vehicles, templates):
     cfg, tpls = templates
     scene, _ = _scene(vehicles, None)
