@@ -518,15 +518,19 @@ class Node:
         )
 
     def timing(self, input_seq: int, stamp_ns: int, stages_ms: dict[str, float]) -> None:
-        """Publish the per-stage wall times of one computation."""
+        """Publish the per-stage wall times of one computation. An entry named "total" is the whole
+        computation's wall time, not a stage (the matcher's results carry one): it is the message's
+        total_ms; without it, total_ms is the sum of the stages.
+        """
+        stages = {k: float(v) for k, v in stages_ms.items() if k != "total"}
         self.publish(
             keys.service_key(self.uav, self.service, "timing"),
             {
                 "stamp_ns": stamp_ns,
                 "service": self.service,
                 "input_seq": input_seq,
-                "stages_ms": {k: float(v) for k, v in stages_ms.items()},
-                "total_ms": float(sum(stages_ms.values())),
+                "stages_ms": stages,
+                "total_ms": float(stages_ms.get("total", sum(stages.values()))),
             },
         )
 

@@ -146,8 +146,12 @@ def run_recording(
     overrides: list[str] = (),
     answer_timeout_s: float = 600.0,
     ready_timeout_s: float = 900.0,
+    rate: float | None = None,
 ) -> RunResult:
     """Replay `input_path` through `layout` in lock-step, recording everything into `out`.
+
+    With `rate`, the frames go out at the recording's pace times `rate` instead, whether or not the
+    pipeline has answered (`Replayer.paced`): the service graph's throughput and latency, as in flight.
 
     Everything is checked before anything starts (`check_run`); relative paths are the caller's, not the
     services' (they run from the repository).
@@ -167,7 +171,10 @@ def run_recording(
         tracked = any(p.service == "tracker" for p in sup.layout.processes)
         answer_key = "atr/{uav}/tracks" if tracked else "atr/{uav}/detections"
         with Replayer(input_path, session, uav=uav) as replayer:
-            stats = replayer.lock_step(answer_key, answer_timeout_s=answer_timeout_s)
+            if rate is None:
+                stats = replayer.lock_step(answer_key, answer_timeout_s=answer_timeout_s)
+            else:
+                stats = replayer.paced(rate, answer_key, answer_timeout_s=answer_timeout_s)
         result.frames, result.timeouts = stats.frames, stats.timeouts
     return result
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 import logging
 import re
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -130,8 +130,11 @@ class Replayer(ClosesOnExit):
 
     # Public interface --------------------------------------------------------------------------
 
-    def recorded(self, rate: float = 1.0) -> ReplayStats:
-        """Publish with the recording's log-time spacing divided by `rate` (2.0 = twice as fast).
+    def recorded(
+        self, rate: float = 1.0, on_publish: Callable[[str, Message], None] | None = None
+    ) -> ReplayStats:
+        """Publish with the recording's log-time spacing divided by `rate` (2.0 = twice as fast);
+        `on_publish` sees each message after it is sent.
 
         Raises:
             ConfigError: `rate` is not > 0.
@@ -148,6 +151,8 @@ class Replayer(ClosesOnExit):
             if delay > 0 and self._stop.wait(delay):
                 break
             self._publish(topic, message)
+            if on_publish is not None:
+                on_publish(topic, message)
         return self._finish(start_wall)
 
     def fast(self) -> ReplayStats:
@@ -194,14 +199,60 @@ class Replayer(ClosesOnExit):
             self._watch.close()
             self._watch = None
 
+    def paced(
+        self,
+        rate: float = 1.0,
+        answer_key: str = DEFAULT_ANSWER_KEY,
+        answer_timeout_s: float = 60.0,
+    ) -> ReplayStats:
+        """Publish at the recording's pace (`recorded`), never waiting on an answer, then wait up to
+        `answer_timeout_s` after the last input for every frame's answer: the pipeline as it runs in
+        flight, where the camera does not wait for the matcher.
+
+        Raises:
+            ConfigError: `rate` or `answer_timeout_s` is not > 0.
+
+        """
+        if not answer_timeout_s > 0:
+            raise ConfigError(f"answer timeout {answer_timeout_s} s must be > 0")
+        self._watch = AnswerWatch(self.session, self.node.service, answer_key)
+        frames: list[tuple[str, Message]] = []
+
+        def note_frame(topic: str, message: Message) -> None:
+            image = IMAGE_TOPIC.match(topic)
+            if image is not None:
+                frames.append((image.group(1), message))
+
+        try:
+            stats = self.recorded(rate, on_publish=note_frame)
+            first_input_wall = time.monotonic() - stats.wall_s
+            deadline = time.monotonic() + answer_timeout_s
+            for uav, image in frames:
+                stats.frames += 1
+                left = max(0.0, deadline - time.monotonic())
+                if self._watch.wait(uav, image.publish_time, left, self._stop):
+                    stats.answered += 1
+                elif not self._stop.is_set():
+                    stats.timeouts += 1
+            return self._finish(first_input_wall)
+        finally:
+            self._watch.close()
+            self._watch = None
+
     def run(self, mode: str = "lock-step", **kwargs: Any) -> ReplayStats:
-        """Dispatch to `recorded`, `fast` or `lock_step` by name ("recorded", "fast", "lock-step").
+        """Dispatch to `recorded`, `fast`, `lock_step` or `paced` by name ("recorded", "fast",
+        "lock-step", "paced").
 
         Raises:
             ConfigError: unknown mode.
 
         """
-        methods = {"recorded": self.recorded, "fast": self.fast, "lock-step": self.lock_step}
+        methods = {
+            "recorded": self.recorded,
+            "fast": self.fast,
+            "lock-step": self.lock_step,
+            "paced": self.paced,
+        }
         if mode not in methods:
             raise ConfigError(f"replay mode {mode!r} must be one of {sorted(methods)}")
         return methods[mode](**kwargs)

@@ -1,7 +1,8 @@
 """Replay a recording through a layout in lock-step and record everything: the regression command.
 
 It starts the layout without its sensor source, waits until every service is ready, replays INPUT's sensor
-messages in lock-step (the next frame only after the pipeline has answered the last), records all traffic to
+messages in lock-step (the next frame only after the pipeline has answered the last; with --rate, at the
+camera's pace times RATE whether or not it has), records all traffic to
 OUTPUT, stops the layout, and exits non-zero naming any process that failed. The same recording and config
 give byte-identical data messages (docs/architecture.md). A simulated flight's recording carries its truth; the
 run's F1 (§III-C, judged as `atr eval` judges it) is printed then.
@@ -11,6 +12,7 @@ Examples:
     atr run flight.mcap --out fpfh.mcap --set recognition.descriptor=fpfh
     atr run flight.mcap --out paper.mcap --preset paper
     atr run flight.mcap --out surf.mcap --set sfm.matcher=surf --layout local
+    atr run flight.mcap --out paced.mcap --rate 2      # frames at twice the camera's pace, no lock-step
 
 """
 
@@ -32,6 +34,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--answer-timeout", type=float, default=600.0, help="lock-step wait per frame, s"
     )
     parser.add_argument(
+        "--rate",
+        type=float,
+        default=None,
+        help="send the frames at RATE x the recorded pace, not in lock-step (throughput and latency; "
+        "a service that falls behind drops inputs and says so)",
+    )
+    parser.add_argument(
         "--ready-timeout",
         type=float,
         default=900.0,
@@ -50,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     for flag, value in (
         ("--answer-timeout", args.answer_timeout),
         ("--ready-timeout", args.ready_timeout),
+        ("--rate", 1.0 if args.rate is None else args.rate),
     ):
         if not value > 0:
             raise ConfigError(f"{flag} {value} must be > 0 seconds")
@@ -62,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
             overrides=args.overrides,
             answer_timeout_s=args.answer_timeout,
             ready_timeout_s=args.ready_timeout,
+            rate=args.rate,
         )
     print(f"replayed {result.frames} frames ({result.timeouts} unanswered) into {args.out}")
     counts = summarise(args.out) if result.frames and not result.failures else None

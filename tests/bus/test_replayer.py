@@ -150,3 +150,34 @@ def test_lock_step_releases_a_frame_only_after_the_answer_to_the_last(
     errors = [t for t, _ in records if t == "atr/uav1/fake_pipeline/errors"]
     assert len(errors) == 2
     assert not any(t == "atr/uav1/replayer/errors" for t, _ in records)  # no timeout
+
+
+def test_paced_replay_sends_every_frame_without_waiting_then_counts_the_answers(
+    hub: str, original: Path
+) -> None:
+    from bus.session import open_session
+
+    def paced(answer_timeout_s: float):
+        session = open_session(peer_config(hub))
+        try:
+            with Replayer(original, session, settle_s=0.0, match_timeout_s=0.5) as replayer:
+                return replayer.paced(rate=4.0, answer_timeout_s=answer_timeout_s)
+        finally:
+            session.close()
+
+    # Nobody answers: every input still goes out at the pace, and the six frames share one wait
+    # (lock-step would wait out the timeout once per frame: 6 s and more).
+    stats = paced(answer_timeout_s=1.0)
+    assert stats.published == 6 * 4 and (stats.frames, stats.answered, stats.timeouts) == (6, 0, 6)
+    assert stats.wall_s < 4.0
+    # A pipeline that answers (with Detections, or an ErrorReport every third frame): all counted.
+    watcher = Watcher(hub)
+    pipeline = helper(hub, "pipeline", "--seed", "7", "--max-delay", "0.08", "--error-every", "3")
+    try:
+        watcher.wait_for("fake_pipeline")
+        stats = paced(answer_timeout_s=10.0)
+    finally:
+        pipeline.send_signal(signal.SIGTERM)
+        finish(pipeline)
+        watcher.close()
+    assert (stats.frames, stats.answered, stats.timeouts) == (6, 6, 0)

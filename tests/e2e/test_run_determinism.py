@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from bus import keys
+from bus import codec, keys
 from cli.flight_report import f1_line, summarise
 
 REPO = Path(__file__).resolve().parents[2]
@@ -59,3 +59,22 @@ def test_run_twice_gives_identical_data_messages(flight, tmp_path):
         assert first[topic] == second[topic], (
             f"{topic} differs between two runs of the same recording"
         )
+
+
+def test_a_paced_run_answers_every_frame_and_times_each_scene_once(flight, tmp_path):
+    out = tmp_path / "paced.mcap"
+    done = atr("run", str(flight), "--out", str(out), "--rate", "4", *SMALL_CAMERA, timeout_s=900)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "replayed 4 frames (0 unanswered)" in done.stdout
+    assert len(data_messages(out)[keys.detections("uav1")]) == 4
+    timings = []
+    with out.open("rb") as stream:
+        for _, channel, message in make_reader(stream).iter_messages():
+            if channel.topic == "atr/uav1/atr_matcher/timing":
+                timings.append(codec.unpack(message.data))
+    assert len(timings) == 4
+    for timing in timings:
+        # the matcher's whole wall time is its total, not one more stage to add up
+        assert "total" not in timing["stages_ms"]
+        stages_ms = sum(timing["stages_ms"].values())
+        assert stages_ms <= timing["total_ms"] <= 1.5 * stages_ms + 50.0

@@ -1,0 +1,110 @@
+"""Service graph benchmark: scenes per second and frame-to-detection latency with frames at the camera's pace.
+
+`atr run` replays in lock-step: the next frame waits for the last answer, so it measures the sum of the
+services' times. In flight the camera does not wait. Here the frames go out at the recorded pace times each
+`--rate` (`atr run --rate`), the processes run side by side as they do in flight (SfM of one scene while the
+matcher works on the previous one), and the output recording gives, per scene:
+
+- latency: the Detections message's log time minus its frame's (both stamped by the recorder, one clock);
+- the interval between scenes, sustained: the span of the Detections over the scenes answered after the first;
+- frames unanswered (a service that falls behind drops inputs once its queue is full, and says so).
+
+Beside it, the services' own time per scene (their Timing messages) and the reference workload of
+`atr.evaluation.timing` timed in this process, so the figures compare across machines.
+
+Run: ./dev bench service_graph [--input FLIGHT.mcap] [--frames 21] [--rates 1 2.5]
+Without --input, scenario 1 run 3 (50 m, 30 degrees) is simulated once into a temporary folder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from atr.evaluation.timing import REFERENCE_WORKLOAD, reference_workload_ms
+from bus import codec
+from bus.mcap_tools import iter_messages
+from bus.pipeline import run_recording
+
+
+def simulate(folder: Path, frames: int) -> Path:
+    """A flight recording: scenario 1 run 3, the default camera."""
+    path = folder / "flight.mcap"
+    command = ["atr", "simulate", "--scenario", "1", "--run", "3", "--frames", str(frames)]
+    subprocess.run([*command, "--out", str(path)], check=True, stdout=subprocess.DEVNULL)
+    return path
+
+
+def measure(out: Path, uav: str = "uav1") -> dict[str, float]:
+    """Latency and interval of the scenes answered in a paced run's recording, seconds."""
+    frame_s: dict[int, float] = {}
+    answer_s: dict[int, float] = {}
+    busy_ms: dict[str, list[float]] = {}
+    for topic, message in iter_messages(out):
+        if topic == f"atr/{uav}/camera/image":
+            frame_s[message.publish_time] = message.log_time / 1e9
+        elif topic == f"atr/{uav}/detections":
+            answer_s[message.publish_time] = message.log_time / 1e9
+        elif topic.startswith(f"atr/{uav}/") and topic.endswith("/timing"):
+            timing = codec.unpack(message.data)
+            busy_ms.setdefault(timing["service"], []).append(float(timing["total_ms"]))
+    answered = sorted(s for s in answer_s if s in frame_s)
+    latency_s = [answer_s[s] - frame_s[s] for s in answered]
+    answers_s = sorted(answer_s[s] for s in answered)
+    figures = {
+        "frames": float(len(frame_s)),
+        "scenes": float(len(answered)),
+        "frame_interval_s": float(np.median(np.diff(sorted(frame_s.values())))),
+        # sustained: the answers' span over the scenes answered after the first
+        "scene_interval_s": (answers_s[-1] - answers_s[0]) / (len(answers_s) - 1)
+        if len(answers_s) > 1
+        else float("nan"),
+        "latency_p50_s": float(np.percentile(latency_s, 50)) if latency_s else float("nan"),
+        "latency_p95_s": float(np.percentile(latency_s, 95)) if latency_s else float("nan"),
+    }
+    for service, ms in sorted(busy_ms.items()):
+        figures[f"{service}_ms"] = statistics.median(ms)
+    return figures
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--input", type=Path, help="a flight recording (default: simulate one)")
+    parser.add_argument("--frames", type=int, default=21, help="frames of the simulated flight")
+    parser.add_argument("--rates", type=float, nargs="+", default=[1.0, 2.5])
+    parser.add_argument("--layout", default="local")
+    parser.add_argument("--set", dest="overrides", action="append", default=[])
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        flight = args.input or simulate(folder, args.frames)
+        reference_ms = reference_workload_ms()
+        print(f"reference workload ({REFERENCE_WORKLOAD}): {reference_ms:.1f} ms")
+        for rate in args.rates:
+            out = folder / f"paced-{rate:g}.mcap"
+            result = run_recording(
+                flight, out, layout=args.layout, overrides=args.overrides, rate=rate
+            )
+            if result.failures:
+                sys.exit(f"processes failed: {sorted(result.failures)} (logs: {result.log_dir})")
+            f = measure(out)
+            busy = "  ".join(f"{k[:-3]} {v:.0f} ms" for k, v in f.items() if k.endswith("_ms"))
+            print(
+                f"rate {rate:g}: a frame every {f['frame_interval_s'] * 1e3:.0f} ms; "
+                f"{f['scenes']:.0f} of {f['frames']:.0f} frames answered "
+                f"({result.timeouts} unanswered); a scene every "
+                f"{f['scene_interval_s'] * 1e3:.0f} ms ("
+                f"{f['scene_interval_s'] * 1e3 / reference_ms:.1f} x reference); latency p50 "
+                f"{f['latency_p50_s'] * 1e3:.0f} ms, p95 {f['latency_p95_s'] * 1e3:.0f} ms\n"
+                f"    each service's own time per input (median): {busy}"
+            )
+
+
+if __name__ == "__main__":
+    main()
