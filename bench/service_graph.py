@@ -36,7 +36,8 @@ from bus.pipeline import run_recording
 def simulate(folder: Path, frames: int) -> Path:
     """A flight recording: scenario 1 run 3, the default camera."""
     path = folder / "flight.mcap"
-    command = ["atr", "simulate", "--scenario", "1", "--run", "3", "--frames", str(frames)]
+    command = [sys.executable, "-m", "cli.main", "simulate", "--scenario", "1", "--run", "3"]
+    command += ["--frames", str(frames)]
     subprocess.run([*command, "--out", str(path)], check=True, stdout=subprocess.DEVNULL)
     return path
 

@@ -228,6 +228,11 @@ def select(rows: Sequence[Mapping[str, Any]], **where: Any) -> list[Mapping[str,
     ]
 
 
+REPORTED_SEEDS: tuple[int, ...] = (0, 17, 29)
+"""World seeds whose figures are or will be reported, so no choice may be made on them: 0 the reported
+evaluation, 17 the held-out targets' table, 29 kept unseen for the evaluation's re-run on frozen code
+(docs/evaluation/protocol.md, "Seeds")."""
+
 TUNED_ON_TARGETS: tuple[str, ...] = ("t72", "leopard2", "m113", "hmmwv")
 """The targets whose scenes (tuning seeds only) the matcher's choices were measured on; every other
 vehicle of the family is a held-out target (docs/evaluation/targets.md)."""
