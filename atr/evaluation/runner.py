@@ -29,7 +29,7 @@ from atr.config import AtrConfig, apply_overrides
 from atr.errors import AtrError, ConfigError, InputError
 from atr.imu import NavState
 from atr.imu.pose_track import FramePose, PoseTrack
-from atr.recognition import DESCRIPTORS, Template, recognize
+from atr.recognition import DESCRIPTORS, Template
 from atr.sfm import reconstruct
 from atr.sfm.pairing import FramePairer, Pair
 from atr.sim.config import SimConfig
@@ -37,6 +37,7 @@ from atr.sim.flight import FlightSimulator, SensorFrame
 from atr.sim.noise import parse_noise, with_navigation_errors
 from atr.sim.scenarios import scenario as scenario_preset
 from atr.sim.world import World, build_world
+from atr.tracking.guided_search import GuidedSearch
 
 SFM_PIPELINES: dict[str, str] = {"gftt-sfm": "gftt", "surf-sfm": "surf", "sgm-sfm": "sgm"}
 """SfM pipelines and their `sfm.matcher`."""
@@ -311,10 +312,10 @@ def flight_frames(flight: Flight, config: AtrConfig, lidar: bool) -> Iterator[Se
 
 
 def _recognize(
+    search: GuidedSearch,
     points: np.ndarray,
-    templates: Sequence[Template],
-    config: AtrConfig,
     seed: int,
+    stamp_ns: int,
     viewpoint: np.ndarray,
     sigma: np.ndarray | None = None,
 ) -> tuple[list[dict[str, Any]], dict[str, float]]:
@@ -322,14 +323,7 @@ def _recognize(
     scene = np.ascontiguousarray(points, np.float32).astype(np.float64)
     if sigma is not None:
         sigma = np.ascontiguousarray(sigma, np.float32).astype(np.float64)
-    result = recognize(
-        scene,
-        list(templates),
-        config.recognition,
-        seed=seed,
-        viewpoint_m=viewpoint,
-        scene_sigma_m=sigma,
-    )
+    result = search(scene, seed=seed, stamp_ns=stamp_ns, viewpoint_m=viewpoint, scene_sigma_m=sigma)
     return (
         [detection_dict(d.target, d.T_world_target, d.score) for d in result.detections],
         dict(result.stage_times_ms),
@@ -338,12 +332,15 @@ def _recognize(
 
 @dataclass(frozen=True)
 class _ArmInputs:
-    """What each arm needs besides the scene: its configuration and the templates it matches against."""
+    """What each arm needs besides the scene: its configuration, the templates it matches against and,
+    for the 3D arms, the matcher as the atr_matcher service holds it over a flight (its search guidance).
+    """
 
     configs: Mapping[Arm, AtrConfig]
     templates_3d: Mapping[str, Sequence[Template]]
     templates_2d: Mapping[str, list[Template2d]]
     baseline2d: Baseline2dConfig
+    searches: Mapping[Arm, GuidedSearch]
 
 
 @dataclass
@@ -396,11 +393,19 @@ def run_flight(
 
     """
     _check_templates(arms, templates_3d, templates_2d)
+    configs = {arm: arm_config(config, arm) for arm in arms}
     inputs = _ArmInputs(
-        {arm: arm_config(config, arm) for arm in arms},
+        configs,
         templates_3d,
         templates_2d or {},
         baseline2d or Baseline2dConfig(),
+        {
+            arm: GuidedSearch(
+                templates_3d[arm.descriptor], configs[arm].recognition, configs[arm].tracking
+            )
+            for arm in arms
+            if not arm.is_2d
+        },
     )
     gap = config.sfm.pair_gap_frames
     need_lidar = any(a.pipeline == "lidar" for a in arms)
@@ -516,10 +521,10 @@ def _detect_lidar(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> l
     frame = scene.frame
     work.points = len(frame.lidar_points_m)
     detections, rec = _recognize(
+        inputs.searches[arm],
         frame.lidar_points_m,
-        inputs.templates_3d[arm.descriptor],
-        inputs.configs[arm],
         frame.seq,
+        frame.stamp_ns,
         frame.T_world_cam[:3, 3].astype(np.float64),
     )
     work.stages = {k: v for k, v in rec.items() if k != "total"}
@@ -538,10 +543,10 @@ def _detect_sfm(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> lis
     }
     work.points = len(cloud.points_world_m)
     detections, rec = _recognize(
+        inputs.searches[arm],
         cloud.points_world_m,
-        inputs.templates_3d[arm.descriptor],
-        config,
         scene.frame.seq,
+        scene.frame.stamp_ns,
         scene.pose.T_world_cam[:3, 3],
         cloud.sigma_m,
     )

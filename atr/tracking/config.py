@@ -36,6 +36,11 @@ class TrackingConfig:
         flip_evidence: detections at a track's place whose heading is 180 degrees off it before the track
             treats heading as known only modulo 180 degrees (a vehicle whose ends look alike to the matcher).
         supporting_max: how many of the latest supporting detections' stamps a track keeps.
+        guided_search: the matcher searches, between whole-cloud searches, only around the tracks its own
+            detections make (``atr.tracking.guided_search``; ours, off by default: docs/tracking.md).
+        full_search_every: with guided_search, every this-many-th scene searches the whole cloud.
+        k_search_radius: a held track's search cylinder's radius / the largest template's footprint
+            (length + width), so a vehicle at the track's place is inside at any heading.
 
     """
 
@@ -50,6 +55,9 @@ class TrackingConfig:
     delete_after_misses: int = bounded(20, ge=1)
     flip_evidence: int = bounded(2, ge=1)
     supporting_max: int = bounded(32, ge=1)
+    guided_search: bool = False
+    full_search_every: int = bounded(4, ge=1)
+    k_search_radius: float = bounded(1.0, gt=0)
 
     def __post_init__(self) -> None:
         """Validate; raise ConfigError naming the bad value."""

@@ -2,8 +2,9 @@
 
 For each PointCloud (SfM by default, or the LIDAR baseline with `pipeline.cloud_source=lidar`): uniform
 subsampling at 0.3 m, smooth-surface filtering, description with the templates' descriptor, kNNDR matching,
-geometric-consistency grouping, RANSAC per group, ICP verification. One Detections message per cloud, stamped
-with the cloud's stamp_ns (an empty list when nothing is accepted). RANSAC is seeded from the cloud's last
+geometric-consistency grouping, RANSAC per group, ICP verification (with `tracking.guided_search`, between
+whole-cloud searches only around the targets it already tracks: atr.tracking.guided_search). One Detections
+message per cloud, stamped with the cloud's stamp_ns (an empty list when nothing is accepted). RANSAC is seeded from the cloud's last
 frame_seq, so a replay gives byte-identical detections (whatever clouds were lost before). A cloud put again
 (the same seq from the same sfm, after a restart elsewhere) gets no second answer. Templates come from
 template_store over the bus (fetched once).
@@ -21,8 +22,9 @@ from collections import deque
 
 import numpy as np
 
-from atr.recognition import Template, recognize
+from atr.recognition import Template
 from atr.recognition.template import template_from_message
+from atr.tracking.guided_search import GuidedSearch
 from bus import keys
 from bus.clouds import cloud_points
 from bus.service import effective_config, service_arguments, start_node
@@ -46,6 +48,9 @@ def main(argv: list[str] | None = None) -> int:
         p.rsplit("/", 1)[-1].rsplit(".", 1)[0] for p in pipeline.target_meshes
     ]
     templates: list[Template] = []
+    search: GuidedSearch | None = (
+        None  # recognize, with track-guided search when tracking.guided_search
+    )
     answered: deque[tuple[str | None, int]] = deque(maxlen=64)  # (source, seq) of the last clouds
     with start_node("atr_matcher", args, inputs=[source_key]) as node:
         node.ready()
@@ -68,12 +73,13 @@ def main(argv: list[str] | None = None) -> int:
                     # a cloud sent again after a restart: its answer again, the same message
                     node.republish(keys.detections(args.uav), message.stamp_ns)
                     continue
+                if search is None:
+                    search = GuidedSearch(templates, recognition, config.tracking)
                 sigma = cloud.get("sigma_m")
-                result = recognize(
+                result = search(
                     cloud_points(cloud).astype(np.float64),
-                    templates,
-                    recognition,
                     seed=int(cloud["frame_seqs"][-1]),  # the frame, whatever clouds were lost
+                    stamp_ns=message.stamp_ns,
                     viewpoint_m=cloud.get("viewpoint_m"),
                     scene_sigma_m=None if sigma is None else np.asarray(sigma, np.float64),
                 )

@@ -1,0 +1,146 @@
+"""Track-guided search (ours, not the paper's): once a target is held, look where it stands.
+
+A UAV orbiting a target sees it in dozens of consecutive scenes, and a parked vehicle does not move between
+them. So once the matcher's own tracker holds a track (confirmed, or lost for a few scenes), the scenes
+between two whole-cloud searches look only in a vertical cylinder around each held track: the matcher's
+every step then runs on the points of that neighbourhood, not on the whole city. The whole cloud is still
+searched every ``tracking.full_search_every``-th scene and whenever no track is held, so a target that
+appears, or one a false track hid, is found there.
+
+The cylinder's radius is ``tracking.k_search_radius`` x the largest template's footprint (its length +
+width): a vehicle standing at the track's place is inside it at any heading, and so is the ground around
+it that ground removal needs. The tracker is the tracker service's own object (``atr.tracking.Tracker``)
+fed with the matcher's detections, so the guidance is deterministic: the same clouds in the same order
+give the same searches. A restarted matcher starts with no track and searches whole clouds until it holds
+one again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from atr.errors import InputError
+from atr.recognition import RecognitionConfig, RecognitionResult, Template, recognize
+from atr.recognition.attention import largest_footprint_m
+from atr.tracking.config import TrackingConfig
+from atr.tracking.tracker import Tracker, TrackInput
+
+
+@dataclass(frozen=True)
+class SearchRegion:
+    """A vertical cylinder of the world frame the matcher searches.
+
+    Attributes:
+        centre_m: (2,) x, y of its axis, metres.
+        radius_m: its radius, metres.
+
+    """
+
+    centre_m: np.ndarray
+    radius_m: float
+
+
+def points_in_regions(points_m: np.ndarray, regions: Sequence[SearchRegion]) -> np.ndarray:
+    """(N,) bool: which points lie inside any region (at any height)."""
+    inside = np.zeros(len(points_m), bool)
+    for region in regions:
+        d2 = np.sum((points_m[:, :2] - region.centre_m) ** 2, axis=1)
+        inside |= d2 <= region.radius_m**2
+    return inside
+
+
+class GuidedSearch:
+    """The matcher with track-guided search: ``recognize`` on the whole cloud or on the held tracks'
+    neighbourhoods, scene by scene. With ``tracking.guided_search`` off it is ``recognize`` itself.
+
+    Attributes:
+        tracker: the tracks the matcher's own detections make (not published; the tracker service
+            keeps the tracks users see).
+
+    """
+
+    def __init__(
+        self,
+        templates: Sequence[Template],
+        recognition: RecognitionConfig,
+        tracking: TrackingConfig,
+    ) -> None:
+        self.templates = list(templates)
+        self.recognition = recognition
+        self.tracking = tracking
+        self.tracker = Tracker(tracking)
+        footprint_m = max((largest_footprint_m(t.points_m) for t in self.templates), default=0.0)
+        self.radius_m = tracking.k_search_radius * footprint_m
+        self._since_whole: int | None = None  # scenes since the last whole-cloud search
+
+    def regions(self) -> list[SearchRegion] | None:
+        """Where the next scene is searched: the held tracks' cylinders, or None for the whole cloud."""
+        c = self.tracking
+        held = [t for t in self.tracker.tracks if t.state != "tentative"]
+        if (
+            not c.guided_search
+            or not held
+            or self._since_whole is None
+            or self._since_whole + 1 >= c.full_search_every
+        ):
+            return None
+        return [SearchRegion(t.position_m[:2].copy(), self.radius_m) for t in held]
+
+    def __call__(
+        self,
+        scene_points_m: np.ndarray,
+        *,
+        seed: int,
+        stamp_ns: int,
+        viewpoint_m: np.ndarray | None = None,
+        scene_sigma_m: np.ndarray | None = None,
+    ) -> RecognitionResult:
+        """Recognise the templates in one scene, searching where ``regions`` says.
+
+        Args as ``atr.recognition.recognize``, and ``stamp_ns``: the scene's stamp (the tracker ages its
+        tracks by the scenes between stamps).
+
+        Returns:
+            ``recognize``'s result; its stats gain "search": "whole" or the number of regions, and
+            "searched_points": the points given to ``recognize``.
+
+        Raises:
+            As ``recognize`` (the input is checked there). A stamp not after the previous scene's does
+            not raise: the guidance starts again from no track and this scene is searched whole.
+
+        """
+        regions = self.regions()
+        points, sigma = np.asarray(scene_points_m), scene_sigma_m
+        # a malformed cloud goes to recognize whole, which names what is wrong with it
+        well_formed = points.ndim == 2 and points.shape[1] == 3
+        if regions is not None and well_formed:
+            inside = points_in_regions(points.astype(np.float64), regions)
+            points = points[inside]
+            if sigma is not None and np.shape(sigma) == (len(inside),):
+                sigma = np.asarray(sigma)[inside]
+        result = recognize(
+            points,
+            self.templates,
+            self.recognition,
+            seed=seed,
+            viewpoint_m=viewpoint_m,
+            scene_sigma_m=sigma,
+        )
+        result.stats["search"] = "whole" if regions is None else len(regions)
+        result.stats["searched_points"] = len(points)
+        if self.tracking.guided_search:
+            self._observe(result, stamp_ns, whole=regions is None)
+        return result
+
+    def _observe(self, result: RecognitionResult, stamp_ns: int, *, whole: bool) -> None:
+        inputs = [TrackInput.from_pose(d.target, d.T_world_target) for d in result.detections]
+        try:
+            self.tracker.update(inputs, stamp_ns)
+        except InputError:  # scenes out of order: guide again from scratch
+            self.tracker = Tracker(self.tracking)
+            self._since_whole = None
+            return
+        self._since_whole = 0 if whole else (self._since_whole or 0) + 1

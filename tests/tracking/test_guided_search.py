@@ -1,0 +1,108 @@
+"""Track-guided search: the held tracks' neighbourhoods between whole-cloud searches, and the same answer."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from atr.recognition import RecognitionConfig, build_template, recognize
+from atr.recognition import synthetic as syn
+from atr.recognition._backend import have_descriptor
+from atr.tracking import TrackingConfig
+from atr.tracking.guided_search import GuidedSearch, SearchRegion, points_in_regions
+
+DESC = "shot" if have_descriptor("shot") else "fpfh"
+AZ, EL, RANGE = np.radians(20.0), np.radians(30.0), 50.0
+VIEWPOINT = RANGE * np.array([np.cos(EL) * np.cos(AZ), np.cos(EL) * np.sin(AZ), np.sin(EL)])
+TRUCK_SHIFT_M = np.array([45.0, 0.0, 0.0])  # the truck's scene, beside the tank's, far from it
+SCENE_S = 1_000_000_000
+
+
+def test_regions_are_vertical_cylinders() -> None:
+    region = SearchRegion(np.array([10.0, -5.0]), 3.0)
+    points = np.array(
+        [[10.0, -5.0, 0.0], [12.9, -5.0, 50.0], [10.0, -2.1, -3.0], [13.1, -5.0, 0.0], [0, 0, 0]]
+    )
+    assert points_in_regions(points, [region]).tolist() == [True, True, True, False, False]
+    two = [region, SearchRegion(np.zeros(2), 0.5)]
+    assert points_in_regions(points, two).tolist() == [True, True, True, False, True]
+    assert points_in_regions(points, []).tolist() == [False] * 5
+
+
+@pytest.fixture(scope="module")
+def world():
+    sim = pytest.importorskip("atr.sim.vehicles")
+    cfg = RecognitionConfig(descriptor=DESC)
+    meshes = {"t72": sim.t72(), "truck6x6": sim.truck_6x6()}
+    templates = [build_template(m.vertices, m.triangles, k, DESC, cfg) for k, m in meshes.items()]
+    T_tank = syn.pose(0.0, -2.0, 0.7)
+    tank = syn.aerial_scene(
+        [((meshes["t72"].vertices, meshes["t72"].triangles), T_tank)],
+        seed=0,
+        samples_per_m2=30,
+        extent_m=15,
+        n_clutter=4,
+        azimuth_deg=20,
+    )
+    truck = syn.aerial_scene(
+        [((meshes["truck6x6"].vertices, meshes["truck6x6"].triangles), syn.pose(0.0, 0.0, 0.2))],
+        seed=1,
+        samples_per_m2=30,
+        extent_m=15,
+        n_clutter=4,
+        azimuth_deg=20,
+    )
+    scene = np.vstack([tank, truck + TRUCK_SHIFT_M])
+    return cfg, templates, scene, T_tank[:3, 3]
+
+
+def _tank_found(result, position_m) -> bool:
+    return any(
+        d.target == "t72" and np.linalg.norm(d.T_world_target[:3, 3] - position_m) < 2.0
+        for d in result.detections
+    )
+
+
+def test_held_tracks_are_searched_between_whole_searches(world) -> None:
+    cfg, templates, scene, tank_m = world
+    tracking = TrackingConfig(guided_search=True, full_search_every=3)
+    search = GuidedSearch(templates, cfg, tracking)
+    searches, points = [], []
+    for k in range(1, 6):
+        result = search(scene, seed=0, stamp_ns=k * SCENE_S, viewpoint_m=VIEWPOINT)
+        searches.append(result.stats["search"])
+        points.append(result.stats["searched_points"])
+        assert _tank_found(result, tank_m), (k, result.stats["search"])
+    # two scenes to confirm (M = 2), then two guided scenes, then the whole cloud again
+    assert searches[:2] == ["whole", "whole"] and searches[4] == "whole"
+    assert all(isinstance(s, int) and s >= 1 for s in searches[2:4]), searches
+    assert points[2] < len(scene) and points[3] < len(scene)
+    assert points[0] == points[1] == points[4] == len(scene)
+    # a scene out of order does not fail the recognition; the guidance starts again from no track
+    late = search(scene, seed=0, stamp_ns=2 * SCENE_S, viewpoint_m=VIEWPOINT)
+    assert _tank_found(late, tank_m)
+    assert search.regions() is None
+
+
+def test_without_guidance_it_is_recognize(world) -> None:
+    cfg, templates, scene, _ = world
+    search = GuidedSearch(templates, cfg, TrackingConfig())
+    for k in (1, 2, 3):
+        guided = search(scene, seed=k, stamp_ns=k * SCENE_S, viewpoint_m=VIEWPOINT)
+        plain = recognize(scene, templates, cfg, seed=k, viewpoint_m=VIEWPOINT)
+        assert guided.stats["search"] == "whole"
+        assert [d.to_dict() for d in guided.detections] == [d.to_dict() for d in plain.detections]
+    assert search.regions() is None
+
+
+def test_search_radius_is_a_multiple_of_the_largest_footprint(world) -> None:
+    cfg, templates, _, _ = world
+    one = GuidedSearch(templates, cfg, TrackingConfig(guided_search=True))
+    two = GuidedSearch(
+        templates, cfg, dataclasses.replace(TrackingConfig(guided_search=True), k_search_radius=2.0)
+    )
+    assert two.radius_m == pytest.approx(2.0 * one.radius_m)
+    tank_xy = np.asarray(templates[0].points_m)[:, :2]
+    assert one.radius_m >= float(np.linalg.norm(tank_xy.max(axis=0) - tank_xy.min(axis=0)))
