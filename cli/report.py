@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shlex
 import shutil
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -111,6 +112,11 @@ def _time_vs_reference(rows: Sequence[Mapping[str, Any]]) -> float | None:
 def _arm_sort(label: str) -> tuple[int, str]:
     pipeline, _, descriptor = label.partition("/")
     return (PIPELINE_ORDER.index(pipeline) if pipeline in PIPELINE_ORDER else 99, descriptor)
+
+
+def _descriptor(label: str) -> str:
+    """The descriptor of an arm's label (2d-1/gftt+freak scaled -> gftt+freak)."""
+    return label.split("/")[1].removesuffix(SCALED_TEMPLATES)
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
@@ -571,7 +577,7 @@ def _header_section(
         _table(
             ["", ""],
             [
-                *[["command", "`" + " ".join(c.get("command", [])) + "`"] for c in configs],
+                *[["command", "`" + shlex.join(c.get("command", [])) + "`"] for c in configs],
                 ["world seed(s) reported", ", ".join(map(str, seeds))],
                 ["scenes per pipeline (no noise)", str(scenes)],
                 ["frames per run", str(sorted({r.get("frames") for r in details}, key=str))],
@@ -886,8 +892,8 @@ def _compactness_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> l
                 [
                     a,
                     _pct(v["f1"]),
-                    str(DESCRIPTOR_LENGTH[a.split("/")[1]]),
-                    _num(1000 * compactness(v["f1"], a.split("/")[1]), ".3f"),
+                    str(DESCRIPTOR_LENGTH[_descriptor(a)]),
+                    _num(1000 * compactness(v["f1"], _descriptor(a)), ".3f"),
                 ]
                 for a, v in sorted(overall.items(), key=lambda x: _arm_sort(x[0]))
             ],
@@ -898,7 +904,7 @@ def _compactness_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> l
             "Compactness x1000 (Fig. 10)",
             {
                 "all scenes": {
-                    a: 1000 * compactness(v["f1"], a.split("/")[1]) for a, v in overall.items()
+                    a: 1000 * compactness(v["f1"], _descriptor(a)) for a, v in overall.items()
                 }
             },
             ylabel="F1 / length x 1000",
@@ -1632,7 +1638,12 @@ def _cost_verdicts(clean: Sequence[Mapping[str, Any]], configs: Sequence) -> lis
         if first.get("template_storage_kb") is not None:
             storage[a] = float(first["template_storage_kb"])
     three_d = {a: kb for a, kb in storage.items() if not a.startswith("2d-")}
-    two_d = {a: kb for a, kb in storage.items() if a.startswith("2d-")}
+    # the paper's 2D column counts its 12 single-size templates: scaled templates are another thing
+    two_d = {
+        a: kb
+        for a, kb in storage.items()
+        if a.startswith("2d-") and not a.endswith(SCALED_TEMPLATES)
+    }
     if three_d and two_d:
         per_vector = {a: paper_template_kb(a.split("/")[1]) for a in three_d}
         paper_3d = [PAPER_TABLE_V_STORAGE_KB[d] for d in DESCRIPTOR_LENGTH if "+" not in d]
@@ -1735,7 +1746,7 @@ def _verdict_section(
         _table(
             ["", "command"],
             [
-                [f"C{i}", "`" + " ".join(c.get("command", [])) + "`"]
+                [f"C{i}", "`" + shlex.join(c.get("command", [])) + "`"]
                 for i, c in enumerate(configs, 1)
             ],
         ),

@@ -508,3 +508,39 @@ def test_scaled_2d_templates_are_an_arm_of_their_own_never_the_papers_2d():
     assert medium.ours.endswith(
         "(2d-1/gftt+freak)"
     )  # the single-size templates, not the better scaled
+
+
+def test_a_report_with_scaled_2d_templates_is_written_whole(tmp_path: Path):
+    out = tmp_path / "report"
+    rows = _sfm_and_lidar(sfm_hits=15, lidar_hits=12)
+    for scenario, run_, obliquity in PAPER_RUNS:
+        for scales, kb in (([1.0], 400.0), ([1.0, 0.5, 0.25], 5000.0)):
+            rows.append(
+                _eval_row(
+                    "2d-1",
+                    "gftt+freak",
+                    scenario,
+                    run_,
+                    ["tp"] * 3 + ["fn"] * 2,
+                    obliquity_deg=obliquity,
+                    template_scales=scales,
+                    template_storage_kb=kb,
+                )
+            )
+    _write_result(out / "data" / "1-all", rows)
+    args = argparse.Namespace(results=[out / "data" / "1-all"], out=out, example=None)
+    assert run(args) == 0
+    details = (out / "details.md").read_text()
+    # the scaled arm has its own compactness row (its descriptor is FREAK's 64 bytes) ...
+    assert "| 2d-1/gftt+freak scaled | 75.0% | 64 |" in details
+    # ... and the paper's 2D storage column is compared with the single-size templates only
+    sized = [
+        _eval_row(pipeline, descriptor, 1, 1, ["tp"], obliquity_deg=30.0, **extra)
+        for pipeline, descriptor, extra in (
+            ("gftt-sfm", "shot", {"template_storage_kb": 7528.5}),
+            ("2d-1", "gftt+freak", {"template_storage_kb": 400.0}),
+            ("2d-1", "gftt+freak", {"template_storage_kb": 5000.0, "template_scales": [1, 0.5]}),
+        )
+    ]
+    storage = _verdict_of(sized, "3D templates need less storage")
+    assert "400" in storage.ours and "5,000" not in storage.ours, storage.ours
