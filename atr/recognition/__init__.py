@@ -14,6 +14,7 @@ from atr.recognition.matcher import (
     Detection,
     RecognitionResult,
     recognize,
+    verify_places,
 )
 from atr.recognition.steps import (
     Correspondences,
@@ -61,6 +62,7 @@ __all__ = [
     "RansacSettings",
     "RecognitionConfig",
     "RecognitionResult",
+    "verify_places",
     "Template",
     "TemplateConfig",
     "Verification",

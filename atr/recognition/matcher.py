@@ -178,11 +178,64 @@ def recognize(
         return RecognitionResult([], clock.result(), stats)
     search = _Search(scene, config, rng, clock)
     stats["templates"] = [search.find(tpl) for tpl in templates]
+    return _compete(search, config, clock, stats)
+
+
+def verify_places(
+    scene_points_m: np.ndarray,
+    templates: Sequence[Template],
+    config: RecognitionConfig,
+    places_T_world_target: Sequence[np.ndarray],
+    *,
+    seed: int,
+    viewpoint_m: np.ndarray | None = None,
+    scene_sigma_m: np.ndarray | None = None,
+) -> RecognitionResult:
+    """Confirm targets where they are expected (ours: the track-guided scenes of
+    ``atr.tracking.guided_search``): every template is laid at every place's pose and refined by ICP,
+    with no description, matching, grouping or RANSAC; acceptance and the place competition are
+    ``recognize``'s, so a place goes to the template that explains it best, as there.
+
+    Args:
+        scene_points_m, templates, config, seed, viewpoint_m, scene_sigma_m: as ``recognize``.
+        places_T_world_target: (4, 4) world-from-target poses to try (e.g. the tracks' fused poses).
+
+    Returns:
+        RecognitionResult with the same stages as ``recognize`` (describe, match, group and ransac 0).
+
+    Raises:
+        As ``recognize``.
+
+    """
+    clock = _Clock()
+    stats: dict[str, Any] = {}
+    pts, sigma = validated_cloud(scene_points_m, scene_sigma_m, config)
+    check_resolutions(templates, config)
+    rng = np.random.default_rng(seed)
+    try:
+        with clock.stage("subsample"):
+            scene = subsampled_scene(pts, sigma, viewpoint_m, config, stats)
+        if not templates:
+            raise EmptyScene("no templates given")
+        with clock.stage("ground"):
+            scene = remove_ground(scene, templates, config, stats)
+    except EmptyScene as reason:
+        stats["reason"] = str(reason)
+        return RecognitionResult([], clock.result(), stats)
+    search = _Search(scene, config, rng, clock)
+    stats["templates"] = [search.confirm(tpl, places_T_world_target) for tpl in templates]
+    return _compete(search, config, clock, stats)
+
+
+def _compete(
+    search: _Search, config: RecognitionConfig, clock: _Clock, stats: dict[str, Any]
+) -> RecognitionResult:
+    """The place competition across the verified candidates of every template; the detections."""
     stats["verified"] = search.verified
     with clock.stage("compete"):
         winners = compete_for_places(
             [candidate for _, candidate in search.candidates],
-            scene.surface,
+            search.scene.surface,
             CompetitionSettings(
                 nms_m=config.nms_m,
                 overlap_m=config.overlap_m,
@@ -243,6 +296,17 @@ class _Search:
             "distinct_hypotheses": len(hyps),
             "accepted": accepted,
         }
+
+    def confirm(self, tpl: Template, places_T_world_target: Sequence[np.ndarray]) -> dict[str, Any]:
+        """Verify one template at given poses, each with the view the camera sees it from."""
+        views = TemplateViews(tpl.view_slices(), None, [], np.zeros(0))
+        hyps = [
+            (_facing_view(tpl, T, self.scene.viewpoint_m), Hypothesis(np.asarray(T, float), 0, 0))
+            for T in places_T_world_target
+        ]
+        with self.clock.stage("icp"):
+            accepted = self._verify(tpl, views, hyps)
+        return {"target": tpl.target, "hypotheses": len(hyps), "accepted": accepted}
 
     def _describe(self, tpl: Template) -> np.ndarray:
         key = (tpl.descriptor, float(tpl.radius_m))
@@ -373,6 +437,23 @@ class _Search:
                 )
                 self.candidates.append((det, candidate))
         return accepted
+
+
+def _facing_view(tpl: Template, T_world_target: np.ndarray, viewpoint_m: np.ndarray | None) -> int:
+    """The template view nearest the direction the camera sees a target at this pose from (view 0
+    when the template or the scene does not say).
+    """
+    azimuths = tpl.params.get("view_azimuths_deg")
+    elevations = tpl.params.get("view_elevations_deg")
+    if viewpoint_m is None or not azimuths or not elevations:
+        return 0
+    T = np.asarray(T_world_target, np.float64)
+    to_camera = T[:3, :3].T @ (np.asarray(viewpoint_m, np.float64) - T[:3, 3])  # target frame
+    azimuth = np.arctan2(to_camera[1], to_camera[0])
+    elevation = np.arctan2(to_camera[2], np.hypot(to_camera[0], to_camera[1]))
+    d_az = np.angle(np.exp(1j * (azimuth - np.radians(np.asarray(azimuths, np.float64)))))
+    d_el = elevation - np.radians(np.asarray(elevations, np.float64))
+    return int(np.argmin(d_az**2 + d_el**2))
 
 
 def _acceptable(v: steps.Verification, m: MatcherConfig) -> bool:

@@ -1,11 +1,13 @@
-"""Track-guided search (ours, not the paper's): once a target is held, look where it stands.
+"""Track-guided search (ours, not the paper's): once a target is held, confirm it where it stands.
 
 A UAV orbiting a target sees it in dozens of consecutive scenes, and a parked vehicle does not move between
 them. So once the matcher's own tracker holds a track (confirmed, or lost for a few scenes), the scenes
-between two whole-cloud searches look only in a vertical cylinder around each held track: the matcher's
-every step then runs on the points of that neighbourhood, not on the whole city. The whole cloud is still
-searched every ``tracking.full_search_every``-th scene and whenever no track is held, so a target that
-appears, or one a false track hid, is found there.
+between two whole-cloud searches only confirm: the cloud is cut to a vertical cylinder around each live
+track, and every template is laid at each track's fused pose and refined by ICP
+(``atr.recognition.verify_places``), with no description, matching, grouping or RANSAC; acceptance and
+the place competition are the whole search's, so a place still goes to the template that explains it
+best. The whole cloud is searched every ``tracking.full_search_every``-th scene and whenever no track is
+held, so a target that appears, or one a false track hid, is found there.
 
 The cylinder's radius is ``tracking.k_search_radius`` x the largest template's footprint (its length +
 width): a vehicle standing at the track's place is inside it at any heading, and so is the ground around
@@ -23,7 +25,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from atr.errors import InputError
-from atr.recognition import RecognitionConfig, RecognitionResult, Template, recognize
+from atr.recognition import (
+    RecognitionConfig,
+    RecognitionResult,
+    Template,
+    recognize,
+    verify_places,
+)
 from atr.recognition.attention import largest_footprint_m
 from atr.tracking.config import TrackingConfig
 from atr.tracking.tracker import Tracker, TrackInput
@@ -77,17 +85,36 @@ class GuidedSearch:
         self._since_whole: int | None = None  # scenes since the last whole-cloud search
 
     def regions(self) -> list[SearchRegion] | None:
-        """Where the next scene is searched: the held tracks' cylinders, or None for the whole cloud."""
+        """Where the next scene is searched, or None for the whole cloud.
+
+        Guided scenes need a held track (confirmed, or lost for a few scenes) and search around every live
+        track, tentative ones too: a target a whole search saw once must get the scenes that confirm it,
+        or a held confuser's neighbourhood would be all the matcher looks at until the next whole search.
+        """
         c = self.tracking
-        held = [t for t in self.tracker.tracks if t.state != "tentative"]
+        tracks = self.tracker.tracks
         if (
             not c.guided_search
-            or not held
+            or all(t.state == "tentative" for t in tracks)
             or self._since_whole is None
             or self._since_whole + 1 >= c.full_search_every
         ):
             return None
-        return [SearchRegion(t.position_m[:2].copy(), self.radius_m) for t in held]
+        return [SearchRegion(t.position_m[:2].copy(), self.radius_m) for t in tracks]
+
+    def places(self) -> list[np.ndarray]:
+        """The poses a guided scene confirms: each live track's fused pose, and turned by 180 degrees
+        where its heading is known only modulo 180 degrees (or not at all).
+        """
+        poses = []
+        for track in self.tracker.tracks:
+            T = track.T_world_target
+            poses.append(T)
+            if track.yaw_ambiguous or not np.isfinite(track.yaw_var):
+                flipped = T.copy()
+                flipped[:2, :2] = -T[:2, :2]
+                poses.append(flipped)
+        return poses
 
     def __call__(
         self,
@@ -98,14 +125,15 @@ class GuidedSearch:
         viewpoint_m: np.ndarray | None = None,
         scene_sigma_m: np.ndarray | None = None,
     ) -> RecognitionResult:
-        """Recognise the templates in one scene, searching where ``regions`` says.
+        """Recognise the templates in one scene: a whole search, or where ``regions`` says the tracks'
+        poses are confirmed.
 
         Args as ``atr.recognition.recognize``, and ``stamp_ns``: the scene's stamp (the tracker ages its
         tracks by the scenes between stamps).
 
         Returns:
-            ``recognize``'s result; its stats gain "search": "whole" or the number of regions, and
-            "searched_points": the points given to ``recognize``.
+            ``recognize``'s or ``verify_places``'s result; its stats gain "search": "whole" or the number
+            of regions, and "searched_points": the points it was given.
 
         Raises:
             As ``recognize`` (the input is checked there). A stamp not after the previous scene's does
@@ -116,19 +144,30 @@ class GuidedSearch:
         points, sigma = np.asarray(scene_points_m), scene_sigma_m
         # a malformed cloud goes to recognize whole, which names what is wrong with it
         well_formed = points.ndim == 2 and points.shape[1] == 3
-        if regions is not None and well_formed:
+        if regions is None or not well_formed:
+            regions = None
+            result = recognize(
+                points,
+                self.templates,
+                self.recognition,
+                seed=seed,
+                viewpoint_m=viewpoint_m,
+                scene_sigma_m=sigma,
+            )
+        else:
             inside = points_in_regions(points.astype(np.float64), regions)
             points = points[inside]
             if sigma is not None and np.shape(sigma) == (len(inside),):
                 sigma = np.asarray(sigma)[inside]
-        result = recognize(
-            points,
-            self.templates,
-            self.recognition,
-            seed=seed,
-            viewpoint_m=viewpoint_m,
-            scene_sigma_m=sigma,
-        )
+            result = verify_places(
+                points,
+                self.templates,
+                self.recognition,
+                self.places(),
+                seed=seed,
+                viewpoint_m=viewpoint_m,
+                scene_sigma_m=sigma,
+            )
         result.stats["search"] = "whole" if regions is None else len(regions)
         result.stats["searched_points"] = len(points)
         if self.tracking.guided_search:

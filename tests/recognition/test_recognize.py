@@ -14,6 +14,7 @@ from atr.recognition import (
     build_template,
     recognize,
     template_from_points,
+    verify_places,
 )
 from atr.recognition import synthetic as syn
 from atr.recognition._backend import have_descriptor
@@ -226,3 +227,18 @@ def test_a_tank_on_a_roof_is_not_a_ground_vehicle(vehicles, templates):
     # the scene is recognisable: without the terrain rule the tank is found on the roof
     assert t72_on_roof(dataclasses.replace(cfg, k_terrain_step=1000.0))
     assert t72_on_roof(cfg) == []
+
+
+def test_verify_places_confirms_the_t72_where_it_stands_and_nowhere_else(vehicles, templates):
+    cfg, tpls = templates
+    scene, T = _scene(vehicles, "t72")
+    nearby = T.copy()
+    nearby[:2, 3] += [0.4, -0.3]  # a track's fused pose is a little off: ICP takes it home
+    res = verify_places(scene, tpls, cfg, [nearby], seed=0, viewpoint_m=VIEWPOINT)
+    assert [d.target for d in res.detections] == ["t72"], res.stats
+    assert np.linalg.norm(res.detections[0].T_world_target[:3, 3] - T[:3, 3]) < 0.5
+    assert res.stage_times_ms["describe"] == res.stage_times_ms["ransac"] == 0.0
+    empty_ground = T.copy()
+    empty_ground[:2, 3] += [0.0, 9.0]
+    res = verify_places(scene, tpls, cfg, [empty_ground], seed=0, viewpoint_m=VIEWPOINT)
+    assert res.detections == []

@@ -10,7 +10,7 @@ import pytest
 from atr.recognition import RecognitionConfig, build_template, recognize
 from atr.recognition import synthetic as syn
 from atr.recognition._backend import have_descriptor
-from atr.tracking import TrackingConfig
+from atr.tracking import TrackingConfig, TrackInput
 from atr.tracking.guided_search import GuidedSearch, SearchRegion, points_in_regions
 
 DESC = "shot" if have_descriptor("shot") else "fpfh"
@@ -106,3 +106,19 @@ def test_search_radius_is_a_multiple_of_the_largest_footprint(world) -> None:
     assert two.radius_m == pytest.approx(2.0 * one.radius_m)
     tank_xy = np.asarray(templates[0].points_m)[:, :2]
     assert one.radius_m >= float(np.linalg.norm(tank_xy.max(axis=0) - tank_xy.min(axis=0)))
+
+
+def test_a_tentative_track_is_searched_beside_a_held_one(world) -> None:
+    cfg, templates, _, _ = world
+    search = GuidedSearch(templates, cfg, TrackingConfig(guided_search=True, full_search_every=3))
+    truck = TrackInput("truck6x6", np.array([5.0, -8.0, 0.0]), 0.5)
+    tank = TrackInput("t72", np.array([17.6, 11.8, 0.0]), 0.9)
+    for k in (1, 2):
+        search.tracker.update([truck], k * SCENE_S)  # the truck's track is confirmed
+    nothing = search(np.zeros((0, 3)), seed=0, stamp_ns=3 * SCENE_S)  # a whole search, empty
+    assert nothing.stats["search"] == "whole" and not nothing.detections
+    search.tracker.update([truck, tank], 4 * SCENE_S)  # the tank seen once: a tentative track
+    regions = search.regions()
+    assert regions is not None and len(regions) == 2
+    centres = sorted(tuple(np.round(r.centre_m, 1)) for r in regions)
+    assert centres == [(5.0, -8.0), (17.6, 11.8)]
