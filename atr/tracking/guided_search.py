@@ -61,8 +61,9 @@ def points_in_regions(points_m: np.ndarray, regions: Sequence[SearchRegion]) -> 
 
 
 class GuidedSearch:
-    """The matcher with track-guided search: ``recognize`` on the whole cloud or on the held tracks'
-    neighbourhoods, scene by scene. With ``tracking.guided_search`` off it is ``recognize`` itself.
+    """The matcher with track-guided search, scene by scene: a whole search (``recognize``), or a
+    confirmation of the live tracks' poses on their neighbourhoods (``verify_places``). With
+    ``tracking.guided_search`` off it is ``recognize`` itself.
 
     Attributes:
         tracker: the tracks the matcher's own detections make (not published; the tracker service
@@ -137,7 +138,7 @@ class GuidedSearch:
 
         Raises:
             As ``recognize`` (the input is checked there). A stamp not after the previous scene's does
-            not raise: the guidance starts again from no track and this scene is searched whole.
+            not raise: the guidance starts again from no track, so the next scene is searched whole.
 
         """
         regions = self.regions()

@@ -3,7 +3,7 @@
 For each PointCloud (SfM by default, or the LIDAR baseline with `pipeline.cloud_source=lidar`): uniform
 subsampling at 0.3 m, smooth-surface filtering, description with the templates' descriptor, kNNDR matching,
 geometric-consistency grouping, RANSAC per group, ICP verification (with `tracking.guided_search`, between
-whole-cloud searches only around the targets it already tracks: atr.tracking.guided_search). One Detections
+whole-cloud searches it only confirms the targets it already tracks: atr.tracking.guided_search). One Detections
 message per cloud, stamped with the cloud's stamp_ns (an empty list when nothing is accepted). RANSAC is seeded from the cloud's last
 frame_seq, so a replay gives byte-identical detections (whatever clouds were lost before). A cloud put again
 (the same seq from the same sfm, after a restart elsewhere) gets no second answer. Templates come from
