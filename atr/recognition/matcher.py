@@ -163,12 +163,7 @@ def recognize(
     check_resolutions(templates, config)
     rng = np.random.default_rng(seed)
     try:
-        with clock.stage("subsample"):
-            scene = subsampled_scene(pts, sigma, viewpoint_m, config, stats)
-        if not templates:
-            raise EmptyScene("no templates given")
-        with clock.stage("ground"):
-            scene = remove_ground(scene, templates, config, stats)
+        scene = _grounded_scene(pts, sigma, viewpoint_m, templates, config, clock, stats)
         with clock.stage("normals"):
             estimate_normals(scene, config)
         with clock.stage("filter"):
@@ -213,18 +208,33 @@ def verify_places(
     check_resolutions(templates, config)
     rng = np.random.default_rng(seed)
     try:
-        with clock.stage("subsample"):
-            scene = subsampled_scene(pts, sigma, viewpoint_m, config, stats)
-        if not templates:
-            raise EmptyScene("no templates given")
-        with clock.stage("ground"):
-            scene = remove_ground(scene, templates, config, stats)
+        scene = _grounded_scene(pts, sigma, viewpoint_m, templates, config, clock, stats)
     except EmptyScene as reason:
         stats["reason"] = str(reason)
         return RecognitionResult([], clock.result(), stats)
     search = _Search(scene, config, rng, clock)
     stats["templates"] = [search.confirm(tpl, places_T_world_target) for tpl in templates]
     return _compete(search, config, clock, stats)
+
+
+def _grounded_scene(
+    pts: np.ndarray,
+    sigma: np.ndarray | None,
+    viewpoint_m: np.ndarray | None,
+    templates: Sequence[Template],
+    config: RecognitionConfig,
+    clock: _Clock,
+    stats: dict[str, Any],
+) -> Scene:
+    """The scene subsampled and, for ground vehicles, without its ground; EmptyScene when too little
+    is left or there is no template.
+    """
+    with clock.stage("subsample"):
+        scene = subsampled_scene(pts, sigma, viewpoint_m, config, stats)
+    if not templates:
+        raise EmptyScene("no templates given")
+    with clock.stage("ground"):
+        return remove_ground(scene, templates, config, stats)
 
 
 def _compete(

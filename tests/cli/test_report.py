@@ -480,24 +480,22 @@ def test_navigation_errors_are_compared_arm_by_arm_on_the_same_scenes():
     assert _navigation_section(exact) == []  # nothing to compare without a nav row
 
 
+def _gftt_freak_row(
+    scenario: int, run_: int, obliquity: float, outcomes: list[str], **extra: object
+) -> dict:
+    return _eval_row(
+        "2d-1", "gftt+freak", scenario, run_, outcomes, obliquity_deg=obliquity, **extra
+    )
+
+
 def test_scaled_2d_templates_are_an_arm_of_their_own_never_the_papers_2d():
     single = ["tp"] * 3 + ["fn"] * 17
     scaled = ["tp"] * 15 + ["fn"] * 5
     rows = _sfm_and_lidar(sfm_hits=20, lidar_hits=6)
     for scenario, run_, obliquity in PAPER_RUNS:
+        rows.append(_gftt_freak_row(scenario, run_, obliquity, single))
         rows.append(
-            _eval_row("2d-1", "gftt+freak", scenario, run_, single, obliquity_deg=obliquity)
-        )
-        rows.append(
-            _eval_row(
-                "2d-1",
-                "gftt+freak",
-                scenario,
-                run_,
-                scaled,
-                obliquity_deg=obliquity,
-                template_scales=[1.0, 0.5, 0.25],
-            )
+            _gftt_freak_row(scenario, run_, obliquity, scaled, template_scales=[1.0, 0.5, 0.25])
         )
     assert {arm_label(r) for r in rows if r["pipeline"] == "2d-1"} == {
         "2d-1/gftt+freak",
@@ -515,14 +513,13 @@ def test_a_report_with_scaled_2d_templates_is_written_whole(tmp_path: Path):
     rows = _sfm_and_lidar(sfm_hits=15, lidar_hits=12)
     for scenario, run_, obliquity in PAPER_RUNS:
         for scales, kb in (([1.0], 400.0), ([1.0, 0.5, 0.25], 5000.0)):
+            outcomes = ["tp"] * 3 + ["fn"] * 2
             rows.append(
-                _eval_row(
-                    "2d-1",
-                    "gftt+freak",
+                _gftt_freak_row(
                     scenario,
                     run_,
-                    ["tp"] * 3 + ["fn"] * 2,
-                    obliquity_deg=obliquity,
+                    obliquity,
+                    outcomes,
                     template_scales=scales,
                     template_storage_kb=kb,
                 )
