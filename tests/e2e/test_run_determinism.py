@@ -78,3 +78,33 @@ def test_a_paced_run_answers_every_frame_and_times_each_scene_once(flight, tmp_p
         assert "total" not in timing["stages_ms"]
         stages_ms = sum(timing["stages_ms"].values())
         assert stages_ms <= timing["total_ms"] <= 1.5 * stages_ms + 50.0
+
+
+def test_track_guided_search_through_the_services_is_deterministic_and_confirms(tmp_path):
+    """With `tracking.guided_search` the matcher's answers depend on the scenes before; the same
+    recording still gives the same bytes, and the scenes after a confirmed track only confirm it."""
+    flight = simulate_small_flight(tmp_path / "flight.mcap", frames=7)
+    outs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
+    guided = ("--set", "tracking.guided_search=true")
+    done = [
+        atr("run", str(flight), "--out", str(out), *SMALL_CAMERA, *guided, timeout_s=900)
+        for out in outs
+    ]
+    assert all(d.returncode == 0 for d in done), [d.stdout + d.stderr for d in done]
+    first, second = (data_messages(p) for p in outs)
+    assert first == second
+    confirmed = []  # (stages, detections) of the matcher's scenes, in order
+    detections = [codec.unpack(m)["detections"] for m in first[keys.detections("uav1")]]
+    with outs[0].open("rb") as stream:
+        for _, channel, message in make_reader(stream).iter_messages():
+            if channel.topic == "atr/uav1/atr_matcher/timing":
+                confirmed.append(codec.unpack(message.data)["stages_ms"])
+    assert len(confirmed) == len(detections) == 7
+    guided_scenes = [
+        k for k, stages in enumerate(confirmed) if stages["describe"] == 0.0 and stages["icp"] > 0
+    ]
+    # a guided scene (no description: the tracks' poses confirmed by ICP) found the T-72 again
+    assert any(any(d["target"] == "t72" for d in detections[k]) for k in guided_scenes), (
+        guided_scenes,
+        [[d["target"] for d in ds] for ds in detections],
+    )
