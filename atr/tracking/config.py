@@ -36,8 +36,9 @@ class TrackingConfig:
         flip_evidence: detections at a track's place whose heading is 180 degrees off it before the track
             treats heading as known only modulo 180 degrees (a vehicle whose ends look alike to the matcher).
         supporting_max: how many of the latest supporting detections' stamps a track keeps.
-        guided_search: the matcher searches, between whole-cloud searches, only around the tracks its own
-            detections make (``atr.tracking.guided_search``; ours, off by default: docs/tracking.md).
+        guided_search: between whole-cloud searches the matcher only confirms, by ICP at their poses, the
+            tracks its own detections make (``atr.tracking.guided_search``; ours, off by default:
+            docs/tracking.md).
         full_search_every: with guided_search, every this-many-th scene searches the whole cloud.
         k_search_radius: a held track's search cylinder's radius / the largest template's footprint
             (length + width), so a vehicle at the track's place is inside at any heading.
