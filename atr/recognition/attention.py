@@ -65,6 +65,62 @@ def vehicle_blobs(
     S = len(points_m)
     if S == 0 or not band.any():
         return np.zeros(S, bool)
+    cells, labels, kept_label = _vehicle_columns(points_m, height_m, band, sizes)
+    kept = ndimage.binary_dilation(kept_label[labels], structure=np.ones((3, 3), bool))
+    return band & kept[tuple(cells.T)]
+
+
+@dataclass(frozen=True)
+class Blob:
+    """One place a vehicle can stand: a kept blob of vehicle-height columns.
+
+    Attributes:
+        idx: indices of its band vertices into the scene.
+        centre_m: (3,) centroid of those vertices, metres.
+        axis_yaw_rad: heading of the longest horizontal axis of their spread (a side seen level, a
+            roof seen from above: a vehicle's length or its width), radians.
+
+    """
+
+    idx: np.ndarray
+    centre_m: np.ndarray
+    axis_yaw_rad: float
+
+
+def vehicle_places(
+    points_m: np.ndarray,
+    height_m: np.ndarray,
+    band: np.ndarray,
+    sizes: AttentionSizes,
+    min_points: int,
+) -> list[Blob]:
+    """The blobs of ``vehicle_blobs`` one by one, each with at least ``min_points`` band vertices,
+    in a fixed order (by grid label), with where they sit and which way they run.
+    """
+    if len(points_m) == 0 or not band.any():
+        return []
+    cells, labels, kept_label = _vehicle_columns(points_m, height_m, band, sizes)
+    label_of_vertex = np.where(band, labels[tuple(cells.T)], 0)
+    label_of_vertex[~kept_label[label_of_vertex]] = 0
+    places = []
+    for label in np.unique(label_of_vertex[label_of_vertex > 0]):
+        idx = np.flatnonzero(label_of_vertex == label)
+        if len(idx) < min_points:
+            continue
+        xyz = np.asarray(points_m, np.float64)[idx]
+        xy = xyz[:, :2] - xyz[:, :2].mean(axis=0)
+        _, vectors = np.linalg.eigh(xy.T @ xy)
+        major = vectors[:, -1]
+        places.append(Blob(idx, xyz.mean(axis=0), float(np.arctan2(major[1], major[0]))))
+    return places
+
+
+def _vehicle_columns(
+    points_m: np.ndarray, height_m: np.ndarray, band: np.ndarray, sizes: AttentionSizes
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each vertex's grid cell, the blob label of each cell (0: none) and which labels are kept
+    (index 0, no blob, never is).
+    """
     cells = np.floor(points_m[:, :2] / sizes.cell_m).astype(np.int64)
     origin = cells.min(axis=0)
     cells -= origin
@@ -76,7 +132,7 @@ def vehicle_blobs(
     occupied &= ~tall
     labels, n = ndimage.label(occupied, structure=np.ones((3, 3), bool))
     if n == 0:
-        return np.zeros(S, bool)
+        return cells, labels, np.zeros(1, bool)
     # Footprint of each blob from its cells' bounding box, measured to the cells' outer edges.
     spans = ndimage.find_objects(labels)
     diagonal_m = np.array(
@@ -86,5 +142,4 @@ def vehicle_blobs(
         ]
     )
     kept_label = np.concatenate([[False], diagonal_m <= sizes.footprint_m])
-    kept = ndimage.binary_dilation(kept_label[labels], structure=np.ones((3, 3), bool))
-    return band & kept[tuple(cells.T)]
+    return cells, labels, kept_label

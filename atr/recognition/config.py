@@ -167,6 +167,17 @@ class MatcherConfig:
             (the ground under and around the target is not part of the model).
         k_nms: hypotheses whose target centres are closer than this / resolution (or half the larger
             target) are one place, and the place goes to one template (``atr.recognition.competition``).
+        cue_places: ground vehicles: every vehicle-sized blob of the scene (``atr.recognition.attention``)
+            where no template's hypothesis was accepted is also tried without descriptors: each template
+            is laid there, its camera-facing view on the blob, at ``cue_headings`` headings, and verified
+            like a RANSAC hypothesis (docs/recognition.md, "Cued places"). Finds targets whose keypoints
+            gave no consistent group (a grazing side view).
+        cue_headings: headings tried at a cued place: the blob's long axis and its turns by 360 / this
+            degrees (4: along and across it, both ways).
+        cue_max_tilt_deg: a cued hypothesis is accepted only if ICP left the vehicle's up axis within
+            this of vertical: a vehicle stands on its wheels or tracks on drivable ground (10 deg is an
+            18 % slope), and with no descriptor evidence a tilted fit is a template draped over a part
+            of something else.
 
     """
 
@@ -197,6 +208,9 @@ class MatcherConfig:
     k_clutter_sigma: float = 2.0
     k_ground_slab: float = 2.0
     k_nms: float = 10.0
+    cue_places: bool = False
+    cue_headings: int = bounded(4, ge=1)
+    cue_max_tilt_deg: float = bounded(10.0, gt=0, le=90)
 
     def __post_init__(self) -> None:
         """Validate every field; raise ConfigError naming the bad value."""

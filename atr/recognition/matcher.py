@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from atr.recognition import _backend, steps
+from atr.recognition.attention import Blob, vehicle_places
 from atr.recognition.competition import Candidate, CompetitionSettings, compete_for_places
 from atr.recognition.config import MatcherConfig, RecognitionConfig
 from atr.recognition.scene import (
@@ -25,6 +26,7 @@ from atr.recognition.scene import (
     GroundCheck,
     Scene,
     TemplateViews,
+    attention_sizes,
     check_resolutions,
     estimate_normals,
     heading_window,
@@ -47,6 +49,7 @@ STAGES: tuple[str, ...] = (
     "group",
     "ransac",
     "icp",
+    "cue",
     "compete",
 )
 """Keys of ``RecognitionResult.stage_times_ms`` (plus "total")."""
@@ -173,7 +176,32 @@ def recognize(
         return RecognitionResult([], clock.result(), stats)
     search = _Search(scene, config, rng, clock)
     stats["templates"] = [search.find(tpl) for tpl in templates]
+    if config.matcher.cue_places and scene.upright:
+        with clock.stage("cue"):
+            places = _unexplained_places(search, templates)
+            stats["cued_places"] = len(places)
+            for entry, tpl in zip(stats["templates"], templates, strict=True):
+                entry["cued_accepted"] = search.cue(tpl, places)
     return _compete(search, config, clock, stats)
+
+
+def _unexplained_places(search: _Search, templates: Sequence[Template]) -> list[Blob]:
+    """The scene's vehicle-sized blobs with no accepted hypothesis of any template on them."""
+    scene, config = search.scene, search.config
+    places = vehicle_places(
+        scene.surface.points_m,
+        scene.height,
+        scene.band,
+        attention_sizes(templates, config),
+        config.matcher.min_overlap_vertices,
+    )
+    centres_xy = np.array([c.centre_m[:2] for _, c in search.candidates]).reshape(-1, 2)
+    return [
+        p
+        for p in places
+        if not len(centres_xy)
+        or np.min(np.linalg.norm(centres_xy - p.centre_m[:2], axis=1)) > config.nms_m
+    ]
 
 
 def verify_places(
@@ -318,6 +346,28 @@ class _Search:
             accepted = self._verify(tpl, views, hyps)
         return {"target": tpl.target, "hypotheses": len(hyps), "accepted": accepted}
 
+    def cue(self, tpl: Template, places: Sequence[Blob]) -> int:
+        """Verify one template laid on each cued place at ``cue_headings`` headings: the view the
+        camera sees at that heading, its centroid on the blob's; the number accepted.
+        """
+        model_all = np.asarray(tpl.points_m, np.float64)
+        slices = tpl.view_slices()
+        views = TemplateViews(slices, None, [], np.zeros(0))
+        n = self.config.matcher.cue_headings
+        hyps, segments = [], []
+        for place in places:
+            for turn in range(n):
+                yaw = place.axis_yaw_rad + 2.0 * np.pi * turn / n
+                T = np.eye(4)
+                T[:2, :2] = [[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]]
+                T[:3, 3] = place.centre_m - T[:3, :3] @ model_all.mean(axis=0)
+                vi = _facing_view(tpl, T, self.scene.viewpoint_m)
+                seen_m = model_all[slices[vi][0]].mean(axis=0)
+                T[:3, 3] = place.centre_m - T[:3, :3] @ seen_m
+                hyps.append((vi, Hypothesis(T, 0, 0)))
+                segments.append(place.idx)
+        return self._verify(tpl, views, hyps, segments)
+
     def _describe(self, tpl: Template) -> np.ndarray:
         key = (tpl.descriptor, float(tpl.radius_m))
         if key not in self.described:
@@ -384,9 +434,15 @@ class _Search:
         return distinct, len(hyps)
 
     def _verify(
-        self, tpl: Template, views: TemplateViews, hyps: list[tuple[int, Hypothesis]]
+        self,
+        tpl: Template,
+        views: TemplateViews,
+        hyps: list[tuple[int, Hypothesis]],
+        segments: Sequence[np.ndarray] | None = None,
     ) -> int:
-        """ICP verification and acceptance (§II-B-2 overlap, our clutter and ground rules)."""
+        """ICP verification and acceptance (§II-B-2 overlap, our clutter and ground rules); a
+        hypothesis cued on a blob (``segments``: its vertices) must also explain the blob.
+        """
         if not hyps:
             return 0
         c, m = self.config, self.config.matcher
@@ -405,7 +461,7 @@ class _Search:
         extent = model_extent_m(tpl)
         view_models: dict[int, steps.PointSet] = {}
         accepted = 0
-        for vi, h in hyps:
+        for n, (vi, h) in enumerate(hyps):
             if vi not in view_models:
                 view_models[vi] = steps.PointSet(model_all[views.slices[vi][0]])
             v = steps.verify_with_icp(
@@ -422,7 +478,11 @@ class _Search:
                 )
             )
             # the ground rule last: most hypotheses fail the fit, and the terrain costs more to look up
-            if _acceptable(v, m) and self.ground.stands(v.T_scene_model):
+            if (
+                _acceptable(v, m)
+                and (segments is None or self._cued_fit(model, v.T_scene_model, segments[n]))
+                and self.ground.stands(v.T_scene_model)
+            ):
                 accepted += 1
                 T_world_target = self.ground.placed(v.T_scene_model)
                 det = Detection(
@@ -447,6 +507,24 @@ class _Search:
                 )
                 self.candidates.append((det, candidate))
         return accepted
+
+    def _cued_fit(self, model: steps.PointSet, T_scene_model: np.ndarray, idx: np.ndarray) -> bool:
+        """Whether a hypothesis cued on a blob stands upright (``cue_max_tilt_deg``) and explains at
+        least 1 - ``max_clutter`` of the blob's vertices, each within the clutter measure's reach: a
+        small template laid on a part of a larger vehicle leaves the rest of its blob unexplained,
+        though its own box holds little else.
+        """
+        c = self.config
+        if T_scene_model[2, 2] < np.cos(np.radians(c.matcher.cue_max_tilt_deg)):
+            return False
+        surface = self.scene.surface
+        R, t = T_scene_model[:3, :3], T_scene_model[:3, 3]
+        local = (surface.points_m[idx] - t) @ R  # R^T (p - t): into the model frame
+        reach_m = np.full(len(idx), c.overlap_m)
+        if surface.sigma_m is not None:
+            reach_m = np.maximum(reach_m, c.matcher.k_clutter_sigma * surface.sigma_m[idx])
+        d, _ = model.tree.query(local, distance_upper_bound=float(reach_m.max()))
+        return bool(np.mean(d <= reach_m) >= 1.0 - c.matcher.max_clutter)
 
 
 def _facing_view(tpl: Template, T_world_target: np.ndarray, viewpoint_m: np.ndarray | None) -> int:

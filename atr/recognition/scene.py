@@ -155,15 +155,8 @@ def remove_ground(
     if above.sum() < config.template.normal_k + 1:
         raise EmptyScene(f"only {int(above.sum())} scene vertices stand above the ground")
     if g.attention:
-        cell_m = g.k_attention_cell * res_m
-        sizes = AttentionSizes(
-            cell_m=cell_m,
-            top_m=top + config.ground_cut_m + cell_m,  # a cell of slack for depth noise on a roof
-            footprint_m=g.k_attention_footprint
-            * max(largest_footprint_m(tpl.points_m) for tpl in templates),
-        )
         stats["band_points"] = int(band.sum())
-        band = vehicle_blobs(surface[above], height, band, sizes)
+        band = vehicle_blobs(surface[above], height, band, attention_sizes(templates, config))
         stats["attended_points"] = int(band.sum())
     return Scene(
         PointSet(surface[above], sigma),
@@ -172,6 +165,19 @@ def remove_ground(
         band,
         terrain,
         ground=surface[~above],
+    )
+
+
+def attention_sizes(templates: Sequence[Template], config: RecognitionConfig) -> AttentionSizes:
+    """What a vehicle can look like from above (``atr.recognition.attention``), from the templates."""
+    g = config.ground
+    cell_m = g.k_attention_cell * config.template.resolution_m
+    top = max(float(np.asarray(tpl.points_m)[:, 2].max()) for tpl in templates)
+    return AttentionSizes(
+        cell_m=cell_m,
+        top_m=top + config.ground_cut_m + cell_m,  # a cell of slack for depth noise on a roof
+        footprint_m=g.k_attention_footprint
+        * max(largest_footprint_m(tpl.points_m) for tpl in templates),
     )
 
 

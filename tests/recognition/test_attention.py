@@ -7,7 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from atr.recognition.attention import AttentionSizes, largest_footprint_m, vehicle_blobs
+from atr.recognition.attention import (
+    AttentionSizes,
+    largest_footprint_m,
+    vehicle_blobs,
+    vehicle_places,
+)
 
 SIZES = AttentionSizes(cell_m=0.6, top_m=3.5, footprint_m=1.5 * (7.0 + 3.6))
 
@@ -65,3 +70,34 @@ def test_the_footprint_bound_holds_at_every_heading(yaw):
     turned = box_points(rng, (0.0, 0.0), (7.0, 3.6, 2.3), 4000, yaw=yaw)
     span = turned[:, :2].max(axis=0) - turned[:, :2].min(axis=0)
     assert np.hypot(*span) <= largest_footprint_m(model) + 1e-9
+
+
+def places(points: np.ndarray, min_points: int = 20):
+    height = points[:, 2]
+    band = (height >= 0.45) & (height <= 2.9)
+    return vehicle_places(points, height, band, SIZES, min_points)
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.5, 2.0])
+def test_each_vehicle_is_one_place_with_its_centre_and_its_long_axis(yaw):
+    rng = np.random.default_rng(4)
+    vehicle = box_points(rng, (3.0, -2.0), (7.0, 3.6, 2.3), 3000, yaw=yaw)
+    car = box_points(rng, (3.0, 15.0), (4.5, 1.8, 1.5), 800, yaw=0.0)
+    building = box_points(rng, (-30.0, 0.0), (20.0, 12.0, 8.0), 30000)
+    found = places(np.vstack([vehicle, car, building]))
+    assert len(found) == 2
+    by_y = sorted(found, key=lambda p: p.centre_m[1])
+    assert np.allclose(by_y[0].centre_m[:2], (3.0, -2.0), atol=0.2)
+    assert np.allclose(by_y[1].centre_m[:2], (3.0, 15.0), atol=0.2)
+    # the long axis, either way along it
+    assert abs(math.sin(by_y[0].axis_yaw_rad - yaw)) < 0.1
+    assert abs(math.sin(by_y[1].axis_yaw_rad)) < 0.1
+    assert set(by_y[0].idx) <= set(range(len(vehicle)))
+
+
+def test_a_blob_smaller_than_the_fewest_vertices_is_no_place():
+    rng = np.random.default_rng(5)
+    post = box_points(rng, (0.0, 0.0), (0.3, 0.3, 1.5), 15)
+    assert places(post, min_points=20) == []
+    assert len(places(post, min_points=5)) == 1
+    assert places(np.zeros((0, 3))) == []

@@ -242,3 +242,25 @@ def test_verify_places_confirms_the_t72_where_it_stands_and_nowhere_else(vehicle
     empty_ground[:2, 3] += [0.0, 9.0]
     res = verify_places(scene, tpls, cfg, [empty_ground], seed=0, viewpoint_m=VIEWPOINT)
     assert res.detections == []
+
+
+def test_a_cued_place_finds_the_t72_with_no_descriptor_evidence(vehicles, templates):
+    cfg, tpls = templates
+    blind = dataclasses.replace(cfg, knndr_ratio=1e-9)  # no correspondence survives matching
+    scene, T = _scene(vehicles, "t72")
+    assert recognize(scene, tpls, blind, seed=0, viewpoint_m=VIEWPOINT).detections == []
+    cued = dataclasses.replace(blind, cue_places=True)
+    res = recognize(scene, tpls, cued, seed=0, viewpoint_m=VIEWPOINT)
+    assert res.stats["cued_places"] >= 1
+    assert [d.target for d in res.detections][:1] == ["t72"], res.stats
+    assert np.linalg.norm(res.detections[0].T_world_target[:3, 3] - T[:3, 3]) < 1.0
+    assert res.detections[0].inliers == 0  # found by the cue, not by RANSAC
+
+
+def test_a_cued_place_calls_neither_the_truck_nor_bare_clutter_a_t72(vehicles, templates):
+    cfg, tpls = templates
+    cued = dataclasses.replace(cfg, knndr_ratio=1e-9, cue_places=True)
+    for name in ("truck", None):
+        scene, _ = _scene(vehicles, name)
+        res = recognize(scene, tpls, cued, seed=0, viewpoint_m=VIEWPOINT)
+        assert all(d.target != "t72" for d in res.detections), (name, res.stats)
