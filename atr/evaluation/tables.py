@@ -83,6 +83,7 @@ def track_score(
                         d["target"],
                         record.sensor_relative(d["position_m"]),
                         record.sensor_relative_yaw(d["yaw_rad"]) if "yaw_rad" in d else None,
+                        d["score"],
                     )
                     for d in record.detections
                 ],

@@ -36,6 +36,10 @@ class TrackingConfig:
         flip_evidence: detections at a track's place whose heading is 180 degrees off it before the track
             treats heading as known only modulo 180 degrees (a vehicle whose ends look alike to the matcher).
         supporting_max: how many of the latest supporting detections' stamps a track keeps.
+        class_votes: a track is a place, not a class: detections of any class associate with it, each
+            adds its score to its class's evidence, and the track's class is the leading one. Look-alike
+            templates that win one vehicle's place in turn along an orbit then make one track of the
+            class seen most, not one track per class (ours, off by default: docs/tracking.md).
         guided_search: between whole-cloud searches the matcher only confirms, by ICP at their poses, the
             tracks its own detections make (``atr.tracking.guided_search``; ours, off by default:
             docs/tracking.md).
@@ -56,6 +60,7 @@ class TrackingConfig:
     delete_after_misses: int = bounded(20, ge=1)
     flip_evidence: int = bounded(2, ge=1)
     supporting_max: int = bounded(32, ge=1)
+    class_votes: bool = False
     guided_search: bool = False
     full_search_every: int = bounded(4, ge=1)
     k_search_radius: float = bounded(1.0, gt=0)

@@ -176,7 +176,9 @@ class GuidedSearch:
         return result
 
     def _observe(self, result: RecognitionResult, stamp_ns: int, *, whole: bool) -> None:
-        inputs = [TrackInput.from_pose(d.target, d.T_world_target) for d in result.detections]
+        inputs = [
+            TrackInput.from_pose(d.target, d.T_world_target, d.score) for d in result.detections
+        ]
         try:
             self.tracker.update(inputs, stamp_ns)
         except InputError:  # scenes out of order: guide again from scratch

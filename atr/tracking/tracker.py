@@ -33,18 +33,21 @@ class TrackInput:
         position_m: (3,) position of the target in the world frame, metres.
         yaw_rad: heading of the target in the world frame about z, radians; None when the source gives
             positions only (the heading gate and heading fusion are then skipped).
+        score: the matcher's score of the detection (its class evidence with
+            ``TrackingConfig.class_votes``).
 
     """
 
     target: str
     position_m: np.ndarray
     yaw_rad: float | None = None
+    score: float = 1.0
 
     @classmethod
-    def from_pose(cls, target: str, T_world_target: np.ndarray) -> TrackInput:
+    def from_pose(cls, target: str, T_world_target: np.ndarray, score: float = 1.0) -> TrackInput:
         """A detection from its 4x4 world-from-target pose (heading from the x axis's direction)."""
         T = np.asarray(T_world_target, np.float64)
-        return cls(target, T[:3, 3].copy(), float(math.atan2(T[1, 0], T[0, 0])))
+        return cls(target, T[:3, 3].copy(), float(math.atan2(T[1, 0], T[0, 0])), float(score))
 
 
 @dataclass
@@ -53,7 +56,8 @@ class Track:
 
     Attributes:
         id: track id, unique within the tracker's life (1, 2, ... in order of creation).
-        target: class of the detections it fuses.
+        target: class of the detections it fuses; with ``TrackingConfig.class_votes``, the class with
+            the most evidence so far (the first to reach it on a tie).
         state: "tentative" (not yet M hits in N scenes), "confirmed" (seen this scene, confirmed), or
             "lost" (confirmed, missed the latest scene; deleted after `delete_after_misses`).
         position_m: (3,) fused position in the world frame, metres.
@@ -65,6 +69,8 @@ class Track:
         first_seen_ns: stamp of the first detection.
         last_seen_ns: stamp of the latest detection.
         supporting_stamps_ns: stamps of the latest supporting detections, oldest first.
+        class_evidence: with ``TrackingConfig.class_votes``, the summed scores of the detections of
+            each class at the track's place.
 
     """
 
@@ -80,6 +86,7 @@ class Track:
     hits: int = 1
     last_seen_ns: int = 0
     supporting_stamps_ns: list[int] = field(default_factory=list)
+    class_evidence: dict[str, float] = field(default_factory=dict)
     _window: list[bool] = field(default_factory=list, repr=False)
     _misses: int = 0
     _flips: int = 0
@@ -166,6 +173,10 @@ class Tracker:
                 )
             if d.yaw_rad is not None and not math.isfinite(d.yaw_rad):
                 raise InputError(f"detection {i} ({d.target}) heading {d.yaw_rad} must be finite")
+            if not (math.isfinite(d.score) and d.score >= 0):
+                raise InputError(
+                    f"detection {i} ({d.target}) score {d.score} must be finite and >= 0"
+                )
 
     def _scenes_since(self, stamp_ns: int) -> int:
         """Scenes elapsed since the last update: 1, or the span of a gap in units of the usual step."""
@@ -226,22 +237,49 @@ class Tracker:
         cost = np.full((len(self.tracks), len(detections)), _INFEASIBLE)
         for t, track in enumerate(self.tracks):
             for j, d in enumerate(detections):
-                if d.target != track.target or self._far(track, d):
+                if not self._same_class(track, d) or self._far(track, d):
                     continue
                 d2, h2, _ = self._gates(track, d)
-                if d2 <= c.k_gate**2 and h2 <= c.k_heading_gate**2:
+                if d2 > c.k_gate**2:
+                    continue
+                if h2 <= c.k_heading_gate**2:
                     cost[t, j] = d2 + h2
+                elif c.class_votes:  # one vehicle per place: its heading may be a look-alike's
+                    cost[t, j] = d2 + c.k_heading_gate**2
         rows, cols = linear_sum_assignment(cost)
         return {int(t): int(j) for t, j in zip(rows, cols, strict=True) if cost[t, j] < _INFEASIBLE}
 
+    def _same_class(self, track: Track, d: TrackInput) -> bool:
+        """Whether a detection may join the track: of its class, or of any with ``class_votes``
+        (one vehicle per place: look-alike templates winning it in turn are evidence, not vehicles).
+        """
+        return self.config.class_votes or d.target == track.target
+
+    def _heading_fits(self, track: Track, d: TrackInput) -> bool:
+        """Whether the detection's heading is within the track's heading gate (always, without
+        ``class_votes``: association gated it already).
+        """
+        return (
+            not self.config.class_votes or self._gates(track, d)[1] <= self.config.k_heading_gate**2
+        )
+
+    def _vote(self, track: Track, d: TrackInput) -> None:
+        """Add a detection's score to its class's evidence; the track takes the leading class."""
+        if not self.config.class_votes:
+            return
+        evidence = track.class_evidence
+        evidence[d.target] = evidence.get(d.target, 0.0) + float(d.score)
+        track.target = max(evidence, key=lambda name: evidence[name])  # first of equals
+
     def _fuse(self, track: Track, d: TrackInput, stamp_ns: int) -> None:
         c = self.config
+        self._vote(track, d)
         R = c.position_sigma_m**2 * np.eye(3)
         K = track.P_position @ np.linalg.inv(track.P_position + R)
         track.position_m = track.position_m + K @ (np.asarray(d.position_m) - track.position_m)
         track.P_position = (np.eye(3) - K) @ track.P_position
         track.P_position = 0.5 * (track.P_position + track.P_position.T)  # keep it symmetric
-        if d.yaw_rad is not None:
+        if d.yaw_rad is not None and self._heading_fits(track, d):
             r_yaw = math.radians(c.yaw_sigma_deg) ** 2
             if math.isfinite(track.yaw_var):
                 period = math.pi if track.yaw_ambiguous else 2 * math.pi
@@ -261,7 +299,7 @@ class Tracker:
     ) -> None:
         """A detection no track took starts a tentative track, unless it sits at a track's place: one
         vehicle per place, so it is that track's target seen with another heading (a vote for the
-        180-degree ambiguity when it is 180 degrees off).
+        180-degree ambiguity when it is 180 degrees off; with ``class_votes``, for its class too).
         """
         c = self.config
         for j, d in enumerate(detections):
@@ -270,11 +308,12 @@ class Tracker:
             at_place = [
                 (t, self._gates(t, d))
                 for t in self.tracks
-                if t.target == d.target and not self._far(t, d)
+                if self._same_class(t, d) and not self._far(t, d)
             ]
             at_place = [(t, g) for t, g in at_place if g[0] <= c.k_gate**2]
             if at_place:
                 track, (_, _, flipped) = min(at_place, key=lambda tg: (tg[1][0], tg[0].id))
+                self._vote(track, d)
                 if flipped and not track.yaw_ambiguous:
                     track._flips += 1
                     track.yaw_ambiguous = track._flips >= c.flip_evidence
@@ -292,6 +331,7 @@ class Tracker:
                 supporting_stamps_ns=[stamp_ns],
                 _window=[True],
             )
+            self._vote(track, d)
             self._next_id += 1
             self.tracks.append(track)
             used.add(j)

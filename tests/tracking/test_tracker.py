@@ -164,6 +164,8 @@ def test_bad_input_is_refused_and_leaves_the_tracks_unchanged():
         tracker.update([det([0, 0, 0], 0.0)], stamp(0))
     with pytest.raises(InputError, match="3 finite metres"):
         tracker.update([det([0, 0], 0.0)], stamp(1))
+    with pytest.raises(InputError, match="score nan"):
+        tracker.update([TrackInput("t72", np.zeros(3), 0.0, float("nan"))], stamp(1))
     assert [(t.id, t.hits, t.position_m.tolist()) for t in tracker.tracks] == before
     assert tracker.update([det([0, 0, 0], 0.0)], stamp(1))[0].state == "confirmed"
 
@@ -211,3 +213,62 @@ def test_the_quick_far_test_never_rejects_a_pair_the_gate_accepts():
         assert not (inside and tracker._far(track, d))
         near_edge += inside
     assert 100 < near_edge < 1900  # both sides of the gate were exercised
+
+
+def look_alike_orbit(seed: int, scenes: int = 30):
+    """One T-72 whose place the matcher gives to the M1 in two scenes of every five, and a real M1
+    parked 40 m away."""
+    rng = np.random.default_rng(seed)
+    m1_m = TARGET_M + [40.0, 0.0, 0.0]
+    out = []
+    for k in range(scenes):
+        noise = rng.normal(0, 0.3, 3)
+        if k % 5 in (1, 3):
+            here = TrackInput("m1", TARGET_M + noise, TARGET_YAW, 0.7)
+        else:
+            here = TrackInput("t72", TARGET_M + noise, TARGET_YAW + rng.normal(0, 0.05), 0.8)
+        out.append([here, TrackInput("m1", m1_m + rng.normal(0, 0.3, 3), -1.0, 0.9)])
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_class_votes_make_one_track_per_place_of_the_class_seen_most(seed):
+    def established(votes: bool) -> list:
+        tracker = Tracker(TrackingConfig(class_votes=votes))
+        for k, ds in enumerate(look_alike_orbit(seed)):
+            tracker.update(ds, stamp(k))
+        return sorted(
+            (t.target, round(float(t.position_m[0])))
+            for t in tracker.tracks
+            if t.state != "tentative"
+        )
+
+    x = round(float(TARGET_M[0]))
+    # one vehicle per place: the T-72's place is one T-72 track, the parked M1 keeps its own
+    assert established(True) == [("m1", x + 40), ("t72", x)]
+    # per class, the look-alike's wins at the T-72's place make a second, M1 track there
+    assert ("m1", x) in established(False)
+
+
+def test_class_votes_weigh_the_matcher_scores():
+    tracker = Tracker(TrackingConfig(class_votes=True))
+    for k in range(6):
+        weak, strong = (
+            TrackInput("t72", TARGET_M, TARGET_YAW, 0.2),
+            TrackInput("m1", TARGET_M, TARGET_YAW, 0.9),
+        )
+        tracker.update([weak if k % 3 else strong], stamp(k))  # four weak T-72s, two strong M1s
+    (track,) = tracker.tracks
+    assert track.target == "m1"
+    assert track.class_evidence == pytest.approx({"m1": 1.8, "t72": 0.8})
+
+
+def test_class_votes_keep_a_place_alive_through_a_turned_look_alike_without_turning_it():
+    tracker = Tracker(TrackingConfig(class_votes=True))
+    for k in range(4):
+        tracker.update([det(TARGET_M, TARGET_YAW)], stamp(k))
+    turned = TrackInput("m1", TARGET_M + [0.2, 0.0, 0.0], TARGET_YAW + math.pi / 2, 0.9)
+    (track,) = tracker.update([turned], stamp(4))
+    assert track.state == "confirmed" and track.hits == 5  # the place was seen: fused, not missed
+    assert track.yaw_rad == pytest.approx(TARGET_YAW, abs=0.05)  # its heading did not pull
+    assert track.target == "t72"
