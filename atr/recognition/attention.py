@@ -7,6 +7,8 @@ stays in the height band is split into connected blobs on a ground grid, and a b
 larger than a vehicle's (a low wall, a hedge, a long shed) is not searched. Keypoints are then taken only
 in the kept blobs, so description, matching, grouping, RANSAC and ICP see fewer of them; the description
 surface itself is untouched (a keypoint's support still reaches every vertex around it).
+``vehicle_places`` gives the same blobs one by one, for the matcher's cued places (templates laid on a
+blob no descriptor explained).
 
 The sizes come from the templates (their tallest point and their largest footprint), never constants.
 """
