@@ -1,0 +1,63 @@
+"""Re-score the confirmed tracks of an evaluation's results with other tracker settings (no re-run).
+
+The tracker runs offline over each run's stored detections, as `atr eval` does (`track_score`), once with
+the defaults and once with `--set tracking.FIELD=VALUE` overrides; prints pooled TP / FP / FN of the
+confirmed tracks per scene, track F1 and false confirmed tracks.
+Prints figures; asserts nothing. Example (the class votes of docs/tracking.md):
+
+    python bench/track_rescore.py --results results --set tracking.class_votes=true
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from atr.config import load_config  # noqa: E402
+from atr.evaluation.io import load_run  # noqa: E402
+from atr.evaluation.runner import Flight  # noqa: E402
+from atr.evaluation.tables import track_score  # noqa: E402
+
+
+def main() -> None:
+    """Parse, load every run of the folder, score both ways, print."""
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--results", type=Path, required=True, help="an atr eval --results folder")
+    parser.add_argument("--set", dest="overrides", action="append", default=[])
+    args = parser.parse_args()
+    base = load_config(None, [])
+    other = load_config(None, args.overrides)
+    runs = []
+    for path in sorted((args.results / "runs").glob("*.json")):
+        data = json.loads(path.read_text())
+        flight = Flight(
+            **{k: tuple(v) if isinstance(v, list) else v for k, v in data["flight"].items()}
+        )
+        records = load_run(path, data["key"])
+        if records is not None:
+            runs.append((flight, records))
+    if not runs:
+        parser.error(f"no result files under {args.results / 'runs'}")
+    present = base.sim.present_min_visible_fraction
+    for label, config in (("defaults", base), (" ".join(args.overrides) or "defaults", other)):
+        tp = fp = fn = false_tracks = 0
+        for flight, records in runs:
+            score = track_score(records, flight.target, present, config.tracking)
+            tp, fp, fn = tp + score.counts.tp, fp + score.counts.fp, fn + score.counts.fn
+            false_tracks += score.false_tracks
+        f1 = 2 * tp / max(1, 2 * tp + fp + fn)
+        scenes = sum(len(r) for _, r in runs)
+        print(
+            f"{label}: track F1 {f1:.3f} (TP {tp} / FP {fp} / FN {fn}), "
+            f"{false_tracks} false confirmed tracks in {scenes} scenes"
+        )
+
+
+if __name__ == "__main__":
+    main()
