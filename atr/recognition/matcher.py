@@ -350,9 +350,13 @@ class _Search:
         """Verify one template laid on each cued place at ``cue_headings`` headings: the view the
         camera sees at that heading, its centroid on the blob's; the number accepted.
         """
+        if not places:
+            return 0
         model_all = np.asarray(tpl.points_m, np.float64)
         slices = tpl.view_slices()
         views = TemplateViews(slices, None, [], np.zeros(0))
+        centroid_m = model_all.mean(axis=0)
+        view_centroids_m = [model_all[points].mean(axis=0) for points, _ in slices]
         n = self.config.matcher.cue_headings
         hyps, segments = [], []
         for place in places:
@@ -360,10 +364,9 @@ class _Search:
                 yaw = place.axis_yaw_rad + 2.0 * np.pi * turn / n
                 T = np.eye(4)
                 T[:2, :2] = [[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]]
-                T[:3, 3] = place.centre_m - T[:3, :3] @ model_all.mean(axis=0)
+                T[:3, 3] = place.centre_m - T[:3, :3] @ centroid_m
                 vi = _facing_view(tpl, T, self.scene.viewpoint_m)
-                seen_m = model_all[slices[vi][0]].mean(axis=0)
-                T[:3, 3] = place.centre_m - T[:3, :3] @ seen_m
+                T[:3, 3] = place.centre_m - T[:3, :3] @ view_centroids_m[vi]
                 hyps.append((vi, Hypothesis(T, 0, 0)))
                 segments.append(place.idx)
         return self._verify(tpl, views, hyps, segments)
