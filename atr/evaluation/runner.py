@@ -30,6 +30,7 @@ from atr.errors import AtrError, ConfigError, InputError
 from atr.imu import NavState
 from atr.imu.pose_track import FramePose, PoseTrack
 from atr.recognition import DESCRIPTORS, Template
+from atr.regions import SearchRegion
 from atr.sfm import reconstruct
 from atr.sfm.pairing import FramePairer, Pair
 from atr.sim.config import SimConfig
@@ -533,7 +534,10 @@ def _detect_lidar(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> l
 
 def _detect_sfm(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> list[dict[str, Any]]:
     config = inputs.configs[arm]
-    cloud, sfm_ms = _cloud(scene, config)
+    search = inputs.searches[arm]
+    # with track-guided search the SfM step matches only where the next search looks
+    regions = search.regions() if config.tracking.guided_sfm else None
+    cloud, sfm_ms = _cloud(scene, config, regions or ())
     # the scene's time is its reconstruction (done once, shared by the descriptors) + its matcher
     work.t0 = time.perf_counter() - sfm_ms / 1e3
     work.stages = {
@@ -543,7 +547,7 @@ def _detect_sfm(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> lis
     }
     work.points = len(cloud.points_world_m)
     detections, rec = _recognize(
-        inputs.searches[arm],
+        search,
         cloud.points_world_m,
         scene.frame.seq,
         scene.frame.stamp_ns,
@@ -554,12 +558,17 @@ def _detect_sfm(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> lis
     return detections
 
 
-def _cloud(scene: _Scene, config: AtrConfig) -> tuple[Any, float]:
-    """The scene's SfM cloud with this configuration's matcher and its reconstruction time, ms
-    (reconstructed once per matcher).
+def _cloud(
+    scene: _Scene, config: AtrConfig, regions: Sequence[SearchRegion] = ()
+) -> tuple[Any, float]:
+    """The scene's SfM cloud with this configuration's matcher in these regions, and its reconstruction
+    time, ms (reconstructed once per matcher and regions).
     """
     matcher = config.sfm.matcher
-    if matcher not in scene.clouds:
+    key = matcher + "".join(
+        f" {r.centre_m.tolist()} {r.radius_m} {r.z_min_m} {r.z_max_m}" for r in regions
+    )
+    if key not in scene.clouds:
         pair = scene.pair
         if pair is None:
             raise InputError(
@@ -574,6 +583,7 @@ def _cloud(scene: _Scene, config: AtrConfig) -> tuple[Any, float]:
             pair.pose["T_world_cam_t1"],
             config.sfm,
             scene.frame.dist_coeffs,
+            regions,
         )
-        scene.clouds[matcher] = (cloud, 1e3 * (time.perf_counter() - t_sfm))
-    return scene.clouds[matcher]
+        scene.clouds[key] = (cloud, 1e3 * (time.perf_counter() - t_sfm))
+    return scene.clouds[key]

@@ -10,11 +10,13 @@ triangulated like the sparse ones, so the gates and the per-point sigma stay the
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
+from atr.regions import SearchRegion
 from atr.sfm.config import SfmConfig
 from atr.sfm.triangulation import fixation_depth_m, relative_camera_pose
 
@@ -27,6 +29,7 @@ def sgm_correspondences(
     T_world_cam_a: np.ndarray,
     T_world_cam_b: np.ndarray,
     config: SfmConfig,
+    regions: Sequence[SearchRegion] = (),
 ) -> tuple[np.ndarray, np.ndarray, dict[str, int | float], str]:
     """Correspondences of a pixel grid of image a in image b, from the disparity of the rectified pair.
 
@@ -38,13 +41,18 @@ def sgm_correspondences(
         T_world_cam_a: (4, 4) world-from-camera at frame t (OpenCV axes).
         T_world_cam_b: (4, 4) world-from-camera at frame t + gap.
         config: the sgm_* settings.
+        regions: where to look (track-guided search, ``atr.tracking.guided_search``): only the window of
+            the rectified pair that holds the regions' outlines in both images, widened along the baseline
+            by the disparity search so that every pixel in it can find its partner, is rectified and
+            matched. Empty: the whole pair.
 
     Returns:
         (pixels_a, pixels_b, stats, reason): (N, 2) float64 undistorted pixels in each image (so they are
         triangulated without undistortion), counters "keypoints" (grid pixels matched) and "tracked" (with a
         valid disparity), the matching "scale" and the "disparities" searched (at that scale), and an empty
         reason; or a reason and no pixels when the motion cannot be rectified (the baseline too close to the
-        optical axis: the epipole lies in or near the image).
+        optical axis: the epipole lies in or near the image) or the regions lie outside both images. With
+        regions, "window_fraction" is the share of the image's pixels the window holds.
 
     """
     T_ba = relative_camera_pose(T_world_cam_a, T_world_cam_b)
@@ -59,11 +67,25 @@ def sgm_correspondences(
         return np.zeros((0, 2)), np.zeros((0, 2)), stats, reason
     dist = np.zeros(5) if dist_coeffs is None else np.asarray(dist_coeffs, np.float64)
     scale = matching_scale(K, T_world_cam_a, T_world_cam_b, config)
-    pair = _rectify_pair(gray_a, gray_b, K, dist, T_ba, scale, config.sgm_block_px)
+    rect = _stereo_rectify(K, dist, gray_a.shape[::-1], T_ba)
     stats["scale"] = scale
-    n_disparities = _disparities_to_search(pair, K, dist, T_world_cam_a, config)
+    n_disparities = _disparities_to_search(rect, K, dist, T_world_cam_a, scale, config)
     stats["disparities"] = n_disparities
-    disparity = _semi_global_disparity(pair, n_disparities, config)
+    window = None
+    if regions:
+        window = _region_window(regions, T_world_cam_a, rect, n_disparities / scale, scale, config)
+        if window is None:
+            return (
+                np.zeros((0, 2)),
+                np.zeros((0, 2)),
+                stats,
+                "the search regions lie outside the images",
+            )
+        (x0, y0), (x1, y1) = window
+        stats["window_fraction"] = (x1 - x0) * (y1 - y0) / float(gray_a.size)
+    pair = _rectify_pair(gray_a, gray_b, K, dist, rect, scale, config.sgm_block_px, window)
+    # a window already holds the columns a whole pair is padded with (_region_window)
+    disparity = _semi_global_disparity(pair, n_disparities, config, pad=window is None)
     rows, cols, d, valid = _textured_grid(pair, disparity, config)
     stats["keypoints"] = int(d.size)
     stats["tracked"] = int(np.count_nonzero(valid))
@@ -72,18 +94,43 @@ def sgm_correspondences(
 
 
 @dataclass(frozen=True)
-class _RectifiedPair:
-    """The pair rectified with the known pose and scaled for matching, as the matcher takes it: the left
-    image is the one whose points lie further along the baseline, and the baseline runs along rows.
+class _Rectification:
+    """How the pair is rectified (cv2.stereoRectify with the known pose) and put in the matcher's order.
 
     Attributes:
-        left, right: the rectified images at the matching scale (transposed when ``vertical``).
-        inside_left, inside_right: where each holds image content (not the rectification's border).
-        vertical: the baseline runs along the columns of the rectified images: they are transposed.
-        b_is_left: image b is the matcher's left image.
-        scale: the matching scale.
+        R1, R2, P1, P2: the rectifying rotations and projections of cameras a and b.
+        vertical: the baseline runs along the rectified images' columns: they are matched transposed.
+        b_is_left: image b is the matcher's left image (the one whose points lie further along the
+            baseline).
         image_size: (width, height) of the full-size images, pixels.
-        R1, R2, P1, P2: cv2.stereoRectify's rectifying rotations and projections of cameras a and b.
+
+    """
+
+    R1: np.ndarray
+    R2: np.ndarray
+    P1: np.ndarray
+    P2: np.ndarray
+    vertical: bool
+    b_is_left: bool
+    image_size: tuple[int, int]
+
+    @property
+    def baseline_axis(self) -> int:
+        """The rectified pixel axis the baseline runs along: 0 (x) or 1 (y)."""
+        return 1 if self.vertical else 0
+
+
+@dataclass(frozen=True)
+class _RectifiedPair:
+    """The pair rectified and scaled for matching, as the matcher takes it: the left image is the one
+    whose points lie further along the baseline, and the baseline runs along rows.
+
+    Attributes:
+        left, right: the rectified images at the matching scale (transposed when ``rect.vertical``).
+        inside_left, inside_right: where each holds image content (not the rectification's border).
+        rect: the rectification.
+        scale: the matching scale.
+        origin_px: (x, y) of the matched window's corner in the full-size rectified images, pixels.
 
     """
 
@@ -91,14 +138,24 @@ class _RectifiedPair:
     right: np.ndarray
     inside_left: np.ndarray
     inside_right: np.ndarray
-    vertical: bool
-    b_is_left: bool
+    rect: _Rectification
     scale: float
-    image_size: tuple[int, int]
-    R1: np.ndarray
-    R2: np.ndarray
-    P1: np.ndarray
-    P2: np.ndarray
+    origin_px: tuple[int, int]
+
+
+def _stereo_rectify(
+    K: np.ndarray, dist: np.ndarray, image_size: tuple[int, int], T_ba: np.ndarray
+) -> _Rectification:
+    """OpenCV's stereoRectify with the known pose, and the matcher's order and orientation."""
+    R_ba, t_ba = T_ba[:3, :3], T_ba[:3, 3]
+    R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(
+        K, dist, K, dist, image_size, R_ba, t_ba.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY
+    )
+    # stereoRectify puts the baseline along x or, for mostly vertical motion, along y; semi-global
+    # matching searches along rows, so a vertical pair is matched transposed.
+    vertical = abs(P2[1, 3]) > abs(P2[0, 3])
+    b_is_left = P2[1 if vertical else 0, 3] > 0
+    return _Rectification(R1, R2, P1, P2, vertical, b_is_left, image_size)
 
 
 def _rectify_pair(
@@ -106,41 +163,77 @@ def _rectify_pair(
     gray_b: np.ndarray,
     K: np.ndarray,
     dist: np.ndarray,
-    T_ba: np.ndarray,
+    rect: _Rectification,
     scale: float,
     block: int,
+    window: tuple[tuple[int, int], tuple[int, int]] | None = None,
 ) -> _RectifiedPair:
-    """Rectify both images (OpenCV's stereoRectify with the known pose) and put them in the matcher's
-    order and orientation.
+    """Rectify both images, or their window ((x0, y0), (x1, y1) of the full-size rectified images), and
+    put them in the matcher's order and orientation.
     """
-    h, w = gray_a.shape
-    R_ba, t_ba = T_ba[:3, :3], T_ba[:3, 3]
-    R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(
-        K, dist, K, dist, (w, h), R_ba, t_ba.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY
-    )
-    rect_a, inside_a = _rectify(gray_a, K, dist, R1, P1, scale, block)
-    rect_b, inside_b = _rectify(gray_b, K, dist, R2, P2, scale, block)
-    # stereoRectify puts the baseline along x or, for mostly vertical motion, along y; semi-global
-    # matching searches along rows, so a vertical pair is matched transposed.
-    vertical = abs(P2[1, 3]) > abs(P2[0, 3])
-    axis = 1 if vertical else 0
-    if vertical:
+    w, h = rect.image_size
+    (x0, y0), (x1, y1) = window or ((0, 0), (w, h))
+    rect_a, inside_a = _rectify(gray_a, K, dist, rect.R1, rect.P1, scale, block, (x0, y0, x1, y1))
+    rect_b, inside_b = _rectify(gray_b, K, dist, rect.R2, rect.P2, scale, block, (x0, y0, x1, y1))
+    if rect.vertical:
         rect_a, rect_b = rect_a.T.copy(), rect_b.T.copy()
         inside_a, inside_b = inside_a.T.copy(), inside_b.T.copy()
-    # The matcher's left image is the one whose points lie further along the baseline axis.
-    b_is_left = P2[axis, 3] > 0
-    left, right = (rect_b, rect_a) if b_is_left else (rect_a, rect_b)
-    inside_left, inside_right = (inside_b, inside_a) if b_is_left else (inside_a, inside_b)
-    return _RectifiedPair(
-        left, right, inside_left, inside_right, vertical, b_is_left, scale, (w, h), R1, R2, P1, P2
-    )
+    left, right = (rect_b, rect_a) if rect.b_is_left else (rect_a, rect_b)
+    inside_left, inside_right = (inside_b, inside_a) if rect.b_is_left else (inside_a, inside_b)
+    return _RectifiedPair(left, right, inside_left, inside_right, rect, scale, (x0, y0))
+
+
+def _region_window(
+    regions: Sequence[SearchRegion],
+    T_world_cam_a: np.ndarray,
+    rect: _Rectification,
+    disparity_px: float,
+    scale: float,
+    config: SfmConfig,
+) -> tuple[tuple[int, int], tuple[int, int]] | None:
+    """The window of the full-size rectified images to match for the regions: ((x0, y0), (x1, y1)), or
+    None when the regions lie outside the images.
+
+    It holds every region's outline as both images see it (rectified rows agree), a margin of two
+    matching blocks, and, towards where partners lie (lower coordinates along the baseline), the
+    disparity search: a pixel of the window then has its partner inside it, as a pixel of the whole pair
+    has, so a nearer surface in the band is matched, not mistaken for one at the region's depth. Corners
+    fall on the grid of matched pixels, so a window's pixels are the whole pair's.
+    """
+    outline_m = np.concatenate([r.outline_m() for r in regions])
+    T_cam_world = np.linalg.inv(T_world_cam_a)
+    in_rect = (outline_m @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]) @ rect.R1.T
+    size = np.asarray(rect.image_size, np.float64)
+    if np.all(in_rect[:, 2] > 0.0):
+        homogeneous = np.c_[in_rect, np.ones(len(in_rect))]
+        pixels = np.concatenate([_projected(homogeneous, P) for P in (rect.P1, rect.P2)])
+        margin_px = 2.0 * config.sgm_block_px / scale
+        low, high = pixels.min(axis=0) - margin_px, pixels.max(axis=0) + margin_px
+        if np.any(high <= 0.0) or np.any(low >= size):
+            return None
+        low, high = np.maximum(low, 0.0), np.minimum(high, size)
+    else:  # a region reaches behind the camera: the whole pair
+        low, high = np.zeros(2), size
+    axis = rect.baseline_axis
+    low[axis] -= disparity_px
+    align = max(1, round(config.sgm_step_px / scale))
+    x0, y0 = (int(np.floor(v / align)) * align for v in low)
+    x1, y1 = (int(np.ceil(v / align)) * align for v in high)
+    return (x0, y0), (x1, y1)
+
+
+def _projected(homogeneous: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """(N, 2) pixels of (N, 4) homogeneous points under the (3, 4) projection P."""
+    projected = homogeneous @ P.T
+    return projected[:, :2] / projected[:, 2:]
 
 
 def _disparities_to_search(
-    pair: _RectifiedPair,
+    rect: _Rectification,
     K: np.ndarray,
     dist: np.ndarray,
     T_world_cam_a: np.ndarray,
+    scale: float,
     config: SfmConfig,
 ) -> int:
     """How many disparities the matcher searches at the matching scale: a multiple of 16."""
@@ -148,16 +241,21 @@ def _disparities_to_search(
     # far: at 0 deg obliquity the near ground then sinks metres below the target. So the search also
     # reaches the nearest flat ground the image sees; no disparity exceeds the image's width.
     ground_px = ground_disparity_px(
-        K, dist, T_world_cam_a, pair.R1, pair.P2, pair.image_size, config.ground_z_m
+        K, dist, T_world_cam_a, rect.R1, rect.P2, rect.image_size, config.ground_z_m
     )
     search_px = max(float(config.sgm_disparities_px), config.sgm_ground_margin * ground_px)
-    return int(np.ceil(min(search_px * pair.scale, pair.left.shape[1]) / 16.0)) * 16
+    width_px = (
+        rect.image_size[rect.baseline_axis] * scale
+    )  # along the baseline, at the matching scale
+    return int(np.ceil(min(search_px * scale, width_px) / 16.0)) * 16
 
 
 def _semi_global_disparity(
-    pair: _RectifiedPair, n_disparities: int, config: SfmConfig
+    pair: _RectifiedPair, n_disparities: int, config: SfmConfig, *, pad: bool = True
 ) -> np.ndarray:
-    """Disparity of every pixel of the left image, float32 pixels at the matching scale (<= 0: none)."""
+    """Disparity of every pixel of the left image, float32 pixels at the matching scale (<= 0: none).
+    Without ``pad`` the first n_disparities columns are left unmatched.
+    """
     block = config.sgm_block_px
     sgm = cv2.StereoSGBM_create(
         minDisparity=0,
@@ -175,9 +273,11 @@ def _semi_global_disparity(
     )
     # The matcher leaves the left image's first numDisparities columns unmatched (their partners would
     # lie left of the right image); padding both images by as many columns keeps the whole image.
-    pad = ((0, 0), (n_disparities, 0))
-    disparity = sgm.compute(np.pad(pair.left, pad), np.pad(pair.right, pad))[:, n_disparities:]
-    return disparity.astype(np.float32) / 16.0  # fixed point, 4 fractional bits
+    if not pad:
+        return sgm.compute(pair.left, pair.right).astype(np.float32) / 16.0
+    widths = ((0, 0), (n_disparities, 0))
+    disparity = sgm.compute(np.pad(pair.left, widths), np.pad(pair.right, widths))
+    return disparity[:, n_disparities:].astype(np.float32) / 16.0  # fixed point, 4 fractional bits
 
 
 def _textured_grid(
@@ -212,12 +312,15 @@ def _original_pixels(
     y = (rows + 0.5) / s - 0.5
     x_right = x_left - d / s
     in_left, in_right = np.c_[x_left, y], np.c_[x_right, y]
-    if pair.vertical:
+    rect = pair.rect
+    if rect.vertical:
         in_left, in_right = in_left[:, ::-1], in_right[:, ::-1]
-    rect_pixels_a, rect_pixels_b = (in_right, in_left) if pair.b_is_left else (in_left, in_right)
+    origin = np.asarray(pair.origin_px, np.float64)  # the window's corner in the rectified images
+    in_left, in_right = in_left + origin, in_right + origin
+    rect_pixels_a, rect_pixels_b = (in_right, in_left) if rect.b_is_left else (in_left, in_right)
     return (
-        _unrectify(rect_pixels_a, K, pair.R1, pair.P1),
-        _unrectify(rect_pixels_b, K, pair.R2, pair.P2),
+        _unrectify(rect_pixels_a, K, rect.R1, rect.P1),
+        _unrectify(rect_pixels_b, K, rect.R2, rect.P2),
     )
 
 
@@ -309,12 +412,19 @@ def _rectify(
     P: np.ndarray,
     scale: float,
     block: int,
+    window: tuple[int, int, int, int],
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The rectified image at the matching scale, and where it holds image content (not the border
-    the rectifying rotation leaves, whose edge would pass for texture).
+    """The window (x0, y0, x1, y1) of the rectified image at the matching scale, and where it holds image
+    content (not the border the rectifying rotation leaves, whose edge would pass for texture).
     """
     h, w = gray.shape
-    map_x, map_y = cv2.initUndistortRectifyMap(K, dist, R, P, (w, h), cv2.CV_32FC1)
+    x0, y0, x1, y1 = window
+    P_window = P.copy()  # the window's pixels are the rectified image's, shifted by its corner
+    P_window[0, 2] -= x0
+    P_window[1, 2] -= y0
+    map_x, map_y = cv2.initUndistortRectifyMap(
+        K, dist, R, P_window, (x1 - x0, y1 - y0), cv2.CV_32FC1
+    )
     rectified = cv2.remap(gray, map_x, map_y, cv2.INTER_LINEAR)
     inside = (map_x >= 0) & (map_x <= w - 1) & (map_y >= 0) & (map_y <= h - 1)
     if scale != 1.0:

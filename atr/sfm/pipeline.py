@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from atr.regions import SearchRegion
 from atr.sfm.config import SfmConfig
 from atr.sfm.correspondences import (
     as_gray_u8,
@@ -36,6 +37,7 @@ def reconstruct(
     T_world_cam_b: np.ndarray,
     config: SfmConfig,
     dist_coeffs: np.ndarray | None = None,
+    regions: Sequence[SearchRegion] = (),
 ) -> SfmCloud:
     """Reconstruct a sparse world-frame cloud from one frame pair and its known camera poses.
 
@@ -49,6 +51,8 @@ def reconstruct(
         dist_coeffs: the lens's OpenCV distortion coefficients; None or zeros for images that are
             already undistorted. Keypoints are found on the images as given and their pixels
             undistorted before triangulation.
+        regions: where to look (track-guided search): dense matching (``sgm``) matches only the image
+            window that holds them; the sparse matchers search the whole pair. Empty: the whole pair.
 
     Returns:
         The cloud; stats hold the counts of each stage and "time_<stage>_s" wall times (seconds,
@@ -70,7 +74,7 @@ def reconstruct(
         )
 
     start = time.perf_counter()
-    pixels_a, pixels_b, stats, reason = _correspondences(pair, config)
+    pixels_a, pixels_b, stats, reason = _correspondences(pair, config, regions)
     if reason:
         return SfmCloud.empty(reason, dict(stats))
     matched = time.perf_counter()
@@ -131,14 +135,14 @@ class _PosedPair:
 
 
 def _correspondences(
-    pair: _PosedPair, config: SfmConfig
+    pair: _PosedPair, config: SfmConfig, regions: Sequence[SearchRegion]
 ) -> tuple[np.ndarray, np.ndarray, Mapping[str, int | float], str]:
     """The pair's correspondences by the configured matcher: pixels in a and b, counters, and why
     there are none (empty when the matcher ran).
     """
     K, dist, T_wa, T_wb = pair.K, pair.dist, pair.T_wa, pair.T_wb
     if config.matcher == "sgm":
-        return sgm_correspondences(pair.gray_a, pair.gray_b, K, dist, T_wa, T_wb, config)
+        return sgm_correspondences(pair.gray_a, pair.gray_b, K, dist, T_wa, T_wb, config, regions)
     if config.matcher == "surf":
         pixels_a, pixels_b, stats = surf_with_stats(
             pair.gray_a,

@@ -43,6 +43,8 @@ class TrackingConfig:
         guided_search: between whole-cloud searches the matcher only confirms, by ICP at their poses, the
             tracks its own detections make (``atr.tracking.guided_search``; ours, off by default:
             docs/tracking.md).
+        guided_sfm: with guided_search, a guided scene's SfM step matches only the image window that
+            holds the search regions (``atr.sfm.dense``): the dense step costs what the window does.
         full_search_every: with guided_search, every this-many-th scene searches the whole cloud.
         k_search_radius: a held track's search cylinder's radius / the largest template's footprint
             (length + width), so a vehicle at the track's place is inside at any heading.
@@ -62,6 +64,7 @@ class TrackingConfig:
     supporting_max: int = bounded(32, ge=1)
     class_votes: bool = False
     guided_search: bool = False
+    guided_sfm: bool = True
     full_search_every: int = bounded(4, ge=1)
     k_search_radius: float = bounded(1.0, gt=0)
 

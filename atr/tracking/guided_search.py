@@ -20,7 +20,6 @@ one again.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,31 +32,9 @@ from atr.recognition import (
     verify_places,
 )
 from atr.recognition.attention import largest_footprint_m
+from atr.regions import SearchRegion, points_in_regions
 from atr.tracking.config import TrackingConfig
 from atr.tracking.tracker import Tracker, TrackInput
-
-
-@dataclass(frozen=True)
-class SearchRegion:
-    """A vertical cylinder of the world frame the matcher searches.
-
-    Attributes:
-        centre_m: (2,) x, y of its axis, metres.
-        radius_m: its radius, metres.
-
-    """
-
-    centre_m: np.ndarray
-    radius_m: float
-
-
-def points_in_regions(points_m: np.ndarray, regions: Sequence[SearchRegion]) -> np.ndarray:
-    """(N,) bool: which points lie inside any region (at any height)."""
-    inside = np.zeros(len(points_m), bool)
-    for region in regions:
-        d2 = np.sum((points_m[:, :2] - region.centre_m) ** 2, axis=1)
-        inside |= d2 <= region.radius_m**2
-    return inside
 
 
 class GuidedSearch:
@@ -83,6 +60,13 @@ class GuidedSearch:
         self.tracker = Tracker(tracking)
         footprint_m = max((largest_footprint_m(t.points_m) for t in self.templates), default=0.0)
         self.radius_m = tracking.k_search_radius * footprint_m
+        # the heights a vehicle at a track's place spans, from the track's position (the vehicle's origin)
+        heights = [t.points_m[:, 2] for t in self.templates if len(t.points_m)]
+        self.z_span_m = (
+            (min(float(h.min()) for h in heights), max(float(h.max()) for h in heights))
+            if heights
+            else (0.0, 0.0)
+        )
         self._since_whole: int | None = None  # scenes since the last whole-cloud search
 
     def regions(self) -> list[SearchRegion] | None:
@@ -101,7 +85,16 @@ class GuidedSearch:
             or self._since_whole + 1 >= c.full_search_every
         ):
             return None
-        return [SearchRegion(t.position_m[:2].copy(), self.radius_m) for t in tracks]
+        low, high = self.z_span_m
+        return [
+            SearchRegion(
+                t.position_m[:2].copy(),
+                self.radius_m,
+                float(t.position_m[2]) + low,
+                float(t.position_m[2]) + high,
+            )
+            for t in tracks
+        ]
 
     def places(self) -> list[np.ndarray]:
         """The poses a guided scene confirms: each live track's fused pose, and turned by 180 degrees

@@ -8,11 +8,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from _poses import look_at  # noqa: E402
 
 from atr.errors import ConfigError
+from atr.regions import SearchRegion, points_in_regions
 from atr.sfm import SfmConfig, reconstruct
 from atr.sfm.correspondences import as_gray_u8
 from atr.sfm.dense import sgm_correspondences
@@ -182,3 +184,42 @@ def test_a_large_jump_penalty_not_above_the_small_one_is_refused(
 ) -> None:
     with pytest.raises(ConfigError, match="k_sgm_large_jump_penalty"):
         SfmConfig(k_sgm_small_jump_penalty=small, k_sgm_large_jump_penalty=large)
+
+
+def _where_the_axis_meets_the_plane(T_a: np.ndarray) -> np.ndarray:
+    axis = T_a[:3, 2]
+    return (T_a[:3, 3] + axis * (-T_a[2, 3] / axis[2]))[:2]
+
+
+@pytest.mark.parametrize("motion", sorted(MOTIONS))
+def test_a_search_region_matches_its_window_as_the_whole_pair_does(
+    geo, plane_scene, motion: str
+) -> None:
+    T_a = oblique_pose(geo, np.array([0.0, 0.0, 50.0]))
+    T_b = oblique_pose(geo, T_a[:3, 3] + MOTIONS[motion], yaw_rad=0.02)
+    img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
+    region = SearchRegion(_where_the_axis_meets_the_plane(T_a), 6.0, -0.5, 1.0)
+    whole = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM)
+    band = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM, regions=[region])
+    assert band.reason == ""
+    assert band.stats["window_fraction"] < 0.7  # the window, not the pair, was matched
+    inside_whole = whole.points_world_m[points_in_regions(whole.points_world_m, [region])]
+    inside_band = band.points_world_m[points_in_regions(band.points_world_m, [region])]
+    assert len(inside_whole) > 100
+    # the region's points are the whole pair's: the same grid pixels, matched alike
+    gap_m, _ = cKDTree(inside_whole).query(inside_band)
+    missed_m, _ = cKDTree(inside_band).query(inside_whole)
+    assert np.mean(gap_m < 0.01) > 0.95
+    assert np.mean(missed_m < 0.01) > 0.95
+
+
+def test_a_search_region_outside_the_images_gives_an_empty_cloud_with_the_reason(
+    geo, plane_scene
+) -> None:
+    T_a = oblique_pose(geo, np.array([0.0, 0.0, 50.0]))
+    T_b = oblique_pose(geo, T_a[:3, 3] + MOTIONS["right"], yaw_rad=0.02)
+    far = SearchRegion(_where_the_axis_meets_the_plane(T_a) + 500.0, 6.0, -0.5, 1.0)
+    img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
+    cloud = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM, regions=[far])
+    assert len(cloud) == 0
+    assert "outside the images" in cloud.reason

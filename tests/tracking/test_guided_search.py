@@ -11,24 +11,13 @@ from atr.recognition import RecognitionConfig, build_template, recognize
 from atr.recognition import synthetic as syn
 from atr.recognition._backend import have_descriptor
 from atr.tracking import TrackingConfig, TrackInput
-from atr.tracking.guided_search import GuidedSearch, SearchRegion, points_in_regions
+from atr.tracking.guided_search import GuidedSearch
 
 DESC = "shot" if have_descriptor("shot") else "fpfh"
 AZ, EL, RANGE = np.radians(20.0), np.radians(30.0), 50.0
 VIEWPOINT = RANGE * np.array([np.cos(EL) * np.cos(AZ), np.cos(EL) * np.sin(AZ), np.sin(EL)])
 TRUCK_SHIFT_M = np.array([45.0, 0.0, 0.0])  # the truck's scene, beside the tank's, far from it
 SCENE_S = 1_000_000_000
-
-
-def test_regions_are_vertical_cylinders() -> None:
-    region = SearchRegion(np.array([10.0, -5.0]), 3.0)
-    points = np.array(
-        [[10.0, -5.0, 0.0], [12.9, -5.0, 50.0], [10.0, -2.1, -3.0], [13.1, -5.0, 0.0], [0, 0, 0]]
-    )
-    assert points_in_regions(points, [region]).tolist() == [True, True, True, False, False]
-    two = [region, SearchRegion(np.zeros(2), 0.5)]
-    assert points_in_regions(points, two).tolist() == [True, True, True, False, True]
-    assert points_in_regions(points, []).tolist() == [False] * 5
 
 
 @pytest.fixture(scope="module")
