@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from atr.errors import InputError
+
 
 @dataclass(frozen=True)
 class SearchRegion:
@@ -48,3 +50,37 @@ def points_in_regions(points_m: np.ndarray, regions: Sequence[SearchRegion]) -> 
         d2 = np.sum((points_m[:, :2] - region.centre_m) ** 2, axis=1)
         inside |= d2 <= region.radius_m**2
     return inside
+
+
+def regions_to_array(regions: Sequence[SearchRegion]) -> np.ndarray:
+    """(R, 5) float64 rows [x, y, radius, z_min, z_max] (metres): the regions as messages carry them."""
+    rows = [
+        [*np.asarray(r.centre_m, np.float64).tolist(), r.radius_m, r.z_min_m, r.z_max_m]
+        for r in regions
+    ]
+    return np.array(rows, np.float64).reshape(-1, 5)
+
+
+def regions_from_array(rows: np.ndarray) -> list[SearchRegion]:
+    """The regions of (R, 5) rows [x, y, radius, z_min, z_max] (``regions_to_array``'s inverse).
+
+    Raises:
+        InputError: not (R, 5), not finite, a radius not above 0 or z_max below z_min.
+
+    """
+    array = np.asarray(rows, np.float64)
+    if array.ndim != 2 or array.shape[1] != 5:
+        raise InputError(
+            f"search regions of shape {array.shape}, expected (R, 5) rows [x, y, radius, z_min, z_max]"
+        )
+    if not np.all(np.isfinite(array)):
+        raise InputError("search regions hold non-finite values; expected finite metres")
+    for x, y, radius, z_min, z_max in array:
+        if radius <= 0.0 or z_max < z_min:
+            raise InputError(
+                f"search region at ({x:.2f}, {y:.2f}) has radius {radius} m and heights {z_min}..{z_max} m; "
+                "expected a radius > 0 and z_min <= z_max"
+            )
+    return [
+        SearchRegion(row[:2].copy(), float(row[2]), float(row[3]), float(row[4])) for row in array
+    ]

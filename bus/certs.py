@@ -216,7 +216,8 @@ def ground_access_control(uav: str, matcher_on_air: bool = False) -> dict[str, A
     publish only its own services' keys and its truth, subscribe under `atr/{uav}/**` (and to what
     lock-step's answer watch asks for: the air still receives only `atr/{uav}/**`), and query templates.
 
-    With the matcher on the air, the air may also publish `atr/{uav}/detections` and the matcher's keys.
+    With the matcher on the air, the air may also publish `atr/{uav}/detections`, `atr/{uav}/guidance`
+    and the matcher's keys.
 
     Recovery after an outage (bus/reliable.py: zenoh-ext's advanced publisher/subscriber): the air may
     declare the caches of its own keys (`KEY/@adv/pub/**`), send their heartbeats and reply from them;
@@ -240,7 +241,7 @@ def ground_access_control(uav: str, matcher_on_air: bool = False) -> dict[str, A
         for kind in ("status", "errors", "timing")
     ]
     if matcher_on_air:
-        air_puts.append(f"atr/{uav}/detections")
+        air_puts += [f"atr/{uav}/detections", f"atr/{uav}/guidance"]
     return {
         "enabled": True,
         "default_permission": "deny",

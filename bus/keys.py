@@ -35,6 +35,9 @@ relative_pose = _uav_key(
 sfm_cloud = _uav_key("sfm/cloud", "PointCloud", "Key of the SfM clouds of `uav`.")
 detections = _uav_key("detections", "Detections", "Key of the detections of `uav`.")
 tracks = _uav_key("tracks", "Tracks", "Key of the tracks of `uav` (services/tracker).")
+guidance = _uav_key(
+    "guidance", "SearchGuidance", "Key of where atr_matcher looks next (track-guided search)."
+)
 
 # Keys whose messages are sensor inputs: what a replay publishes back on the bus.
 INPUT_KEYS = ("camera/image", "imu", "lidar/cloud")

@@ -319,12 +319,20 @@ def _recognize(
     stamp_ns: int,
     viewpoint: np.ndarray,
     sigma: np.ndarray | None = None,
+    cloud_regions: Sequence[SearchRegion] = (),
 ) -> tuple[list[dict[str, Any]], dict[str, float]]:
     # The cloud crosses the bus as float32 (PointCloud points_m, sigma_m); the matcher widens it back.
     scene = np.ascontiguousarray(points, np.float32).astype(np.float64)
     if sigma is not None:
         sigma = np.ascontiguousarray(sigma, np.float32).astype(np.float64)
-    result = search(scene, seed=seed, stamp_ns=stamp_ns, viewpoint_m=viewpoint, scene_sigma_m=sigma)
+    result = search(
+        scene,
+        seed=seed,
+        stamp_ns=stamp_ns,
+        viewpoint_m=viewpoint,
+        scene_sigma_m=sigma,
+        cloud_regions=cloud_regions,
+    )
     return (
         [detection_dict(d.target, d.T_world_target, d.score) for d in result.detections],
         dict(result.stage_times_ms),
@@ -553,6 +561,7 @@ def _detect_sfm(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> lis
         scene.frame.stamp_ns,
         scene.pose.T_world_cam[:3, 3],
         cloud.sigma_m,
+        regions or (),
     )
     work.stages |= {k: v for k, v in rec.items() if k != "total"}
     return detections

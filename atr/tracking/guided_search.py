@@ -118,12 +118,16 @@ class GuidedSearch:
         stamp_ns: int,
         viewpoint_m: np.ndarray | None = None,
         scene_sigma_m: np.ndarray | None = None,
+        cloud_regions: Sequence[SearchRegion] = (),
     ) -> RecognitionResult:
         """Recognise the templates in one scene: a whole search, or where ``regions`` says the tracks'
         poses are confirmed.
 
         Args as ``atr.recognition.recognize``, and ``stamp_ns``: the scene's stamp (the tracker ages its
-        tracks by the scenes between stamps).
+        tracks by the scenes between stamps); ``cloud_regions``: the regions the SfM step matched the
+        cloud in (it holds nothing elsewhere), searched instead of ``regions``. The SfM step takes them
+        from ``regions`` after the previous scene, so in a lock-step run they are the same; a cloud
+        says where it was matched so that its search does not depend on when guidance arrived.
 
         Returns:
             ``recognize``'s or ``verify_places``'s result; its stats gain "search": "whole" or the number
@@ -134,7 +138,7 @@ class GuidedSearch:
             not raise: the guidance starts again from no track, so the next scene is searched whole.
 
         """
-        regions = self.regions()
+        regions = list(cloud_regions) or self.regions()
         points, sigma = np.asarray(scene_points_m), scene_sigma_m
         # a malformed cloud goes to recognize whole, which names what is wrong with it
         well_formed = points.ndim == 2 and points.shape[1] == 3

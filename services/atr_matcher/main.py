@@ -3,7 +3,9 @@
 For each PointCloud (SfM by default, or the LIDAR baseline with `pipeline.cloud_source=lidar`): uniform
 subsampling at 0.3 m, smooth-surface filtering, description with the templates' descriptor, kNNDR matching,
 geometric-consistency grouping, RANSAC per group, ICP verification (with `tracking.guided_search`, between
-whole-cloud searches it only confirms the targets it already tracks: atr.tracking.guided_search). One Detections
+whole-cloud searches it only confirms the targets it already tracks: atr.tracking.guided_search, and after each
+cloud publishes on atr/{uav}/guidance where the next one is to be looked at; a cloud the sfm matched only in
+such regions says so and is searched there). One Detections
 message per cloud, stamped with the cloud's stamp_ns (an empty list when nothing is accepted). RANSAC is seeded from the cloud's last
 frame_seq, so a replay gives byte-identical detections (whatever clouds were lost before). A cloud put again
 (the same seq from the same sfm, after a restart elsewhere) gets no second answer. Templates come from
@@ -24,6 +26,7 @@ import numpy as np
 
 from atr.recognition import Template
 from atr.recognition.template import template_from_message
+from atr.regions import regions_from_array, regions_to_array
 from atr.tracking.guided_search import GuidedSearch
 from bus import keys
 from bus.clouds import cloud_points
@@ -82,7 +85,17 @@ def main(argv: list[str] | None = None) -> int:
                     stamp_ns=message.stamp_ns,
                     viewpoint_m=cloud.get("viewpoint_m"),
                     scene_sigma_m=None if sigma is None else np.asarray(sigma, np.float64),
+                    cloud_regions=regions_from_array(cloud.get("regions_m", np.zeros((0, 5)))),
                 )
+                if config.tracking.guided_search:
+                    # before the Detections: in lock-step the sfm has it before the next frame
+                    node.publish(
+                        keys.guidance(args.uav),
+                        {
+                            "stamp_ns": message.stamp_ns,
+                            "regions_m": regions_to_array(search.regions() or []),
+                        },
+                    )
                 node.publish(
                     keys.detections(args.uav),
                     {

@@ -10,6 +10,8 @@ cloud, a frame whose IMU batch never arrived an ErrorReport (when a later batch 
 `IMU_GRACE_S` after its image when nothing later comes). An input of a frame already
 answered (sent again after a restart downstream) puts that frame's cloud again, the same message.
 A restarted process reports the input a killed one had in hand (its frame is answered) and goes on.
+With `tracking.guided_search` and `sgm` it matches only the image window of atr_matcher's latest guidance
+(atr/{uav}/guidance: the regions where the next scene is looked at) and says so in the cloud's `regions_m`.
 
 Example:
     atr service sfm --uav uav1 --set sfm.matcher=surf --set sfm.pair_gap_frames=2
@@ -19,10 +21,12 @@ Example:
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 
 import numpy as np
 
 from atr.errors import InputError
+from atr.regions import SearchRegion, regions_from_array, regions_to_array
 from atr.sfm import reconstruct
 from atr.sfm.pairing import Answer, FramePairer, Missing, NoPartner
 from bus import keys
@@ -44,6 +48,7 @@ def _cloud(
     sigma: np.ndarray,
     viewpoint: np.ndarray,
     note: str | None = None,
+    regions: Sequence[SearchRegion] = (),
 ) -> dict:
     message = {
         "stamp_ns": stamp_ns,
@@ -53,6 +58,8 @@ def _cloud(
         "sigma_m": np.ascontiguousarray(sigma, np.float32),
         "viewpoint_m": np.asarray(viewpoint, np.float64),
     }
+    if regions:
+        message["regions_m"] = regions_to_array(regions)
     return message | ({"note": note} if note else {})
 
 
@@ -65,6 +72,10 @@ def main(argv: list[str] | None = None) -> int:
     source = f"sfm-{config.matcher}"
     pairer = FramePairer(config.pair_gap_frames)
     inputs = [keys.imu(args.uav), keys.image(args.uav), keys.relative_pose(args.uav)]
+    tracking = full_config.tracking
+    if tracking.guided_search and tracking.guided_sfm and config.matcher == "sgm":
+        inputs.append(keys.guidance(args.uav))
+    regions: list[SearchRegion] = []  # where atr_matcher looks next (its latest guidance)
     with start_node("sfm", args, inputs=inputs) as node:
         node.ready()
 
@@ -100,6 +111,7 @@ def main(argv: list[str] | None = None) -> int:
                 pose["T_world_cam_t1"],
                 config,
                 image_b.get("distortion"),
+                regions,
             )
             publish_cloud(
                 _cloud(
@@ -110,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
                     cloud.sigma_m,
                     pose["T_world_cam_t1"][:3, 3],
                     cloud.reason or None,
+                    regions,
                 ),
             )
             stages = {k[5:-2]: 1e3 * v for k, v in cloud.stats.items() if k.startswith("time_")}
@@ -137,11 +150,15 @@ def main(argv: list[str] | None = None) -> int:
         while not node.stopping:
             for message in node.events(timeout_s=IMU_GRACE_S / 4):
                 with node.handling(message):
+                    if message.type_name == "SearchGuidance":
+                        regions = regions_from_array(message.data["regions_m"])
+                        continue
                     if message.type_name != "RelativePose" and message.source != sensor:
                         # another sensor source (or replay): a new flight, whose frame numbers start
                         # again; a re-send comes from the same publisher and is a repeat
                         if sensor is not None:
                             pairer, waiting = FramePairer(config.pair_gap_frames), {}
+                            regions = []
                         sensor = message.source
                     if message.type_name == "ImuBatch":
                         for missing in pairer.add_imu(int(message.data["frame_seq"])):

@@ -18,6 +18,7 @@ KEYS = {
     "RelativePose": "atr/uav1/pose/relative",
     "Detections": "atr/uav1/detections",
     "Tracks": "atr/uav1/tracks",
+    "SearchGuidance": "atr/uav1/guidance",
     "Template": "atr/templates/t72/fpfh",
     "Truth": "sim/uav1/truth",
     "Status": "atr/uav1/x/status",

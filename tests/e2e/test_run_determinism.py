@@ -85,7 +85,14 @@ def test_track_guided_search_through_the_services_is_deterministic_and_confirms(
     recording still gives the same bytes, and the scenes after a confirmed track only confirm it."""
     flight = simulate_small_flight(tmp_path / "flight.mcap", frames=7)
     outs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
-    guided = ("--set", "tracking.guided_search=true")
+    # the small camera sees ~30 m at 50 m: a tighter cylinder (still holding a T-72 at any heading) than
+    # the default, so that a guided scene's window is less than the image
+    guided = (
+        "--set",
+        "tracking.guided_search=true",
+        "--set",
+        "tracking.k_search_radius=0.45",
+    )
     done = [
         atr("run", str(flight), "--out", str(out), *SMALL_CAMERA, *guided, timeout_s=900)
         for out in outs
@@ -108,3 +115,13 @@ def test_track_guided_search_through_the_services_is_deterministic_and_confirms(
         guided_scenes,
         [[d["target"] for d in ds] for ds in detections],
     )
+    # the sfm matched a guided scene's pair only where the matcher looked: its cloud says so, and holds
+    # fewer points than a scene matched whole
+    assert len(first[keys.guidance("uav1")]) == 7
+    clouds = [codec.unpack(m) for m in first[keys.sfm_cloud("uav1")]]
+    windowed = [k for k, cloud in enumerate(clouds) if "regions_m" in cloud]
+    assert windowed == guided_scenes
+    whole_points = [len(clouds[k]["points_m"]) for k in range(1, 7) if k not in windowed]
+    assert all(len(clouds[k]["points_m"]) < min(whole_points) for k in windowed), [
+        len(cloud["points_m"]) for cloud in clouds
+    ]

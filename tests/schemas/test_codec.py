@@ -37,7 +37,9 @@ def example(name: str) -> dict:
             "points_m": rng.normal(size=(100, 3)).astype(np.float32),
             "sigma_m": rng.random(100).astype(np.float32),
             "viewpoint_m": np.zeros(3),
+            "regions_m": np.array([[10.0, -4.0, 13.1, -0.2, 3.4]]),
         },
+        "SearchGuidance": {"regions_m": np.array([[10.0, -4.0, 13.1, -0.2, 3.4]])},
         "CameraPose": {"frame_seq": 4, "T_world_cam": T, "integration": "strapdown"},
         "RelativePose": {
             "frame_seq_t": 3,
@@ -146,6 +148,7 @@ def test_every_schema_is_covered_and_valid_json_schema():
         "ImuBatch",
         "PointCloud",
         "RelativePose",
+        "SearchGuidance",
         "Status",
         "Template",
         "Timing",
@@ -235,6 +238,7 @@ def test_oversized_payload_is_refused_before_decoding():
         ("atr/uav1/sfm/errors", "ErrorReport"),
         ("sim/uav1/truth", "Truth"),
         ("atr/uav2/tracks", "Tracks"),
+        ("atr/uav1/guidance", "SearchGuidance"),
     ],
 )
 def test_key_table(key, type_name):

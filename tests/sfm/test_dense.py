@@ -198,7 +198,7 @@ def test_a_search_region_matches_its_window_as_the_whole_pair_does(
     T_a = oblique_pose(geo, np.array([0.0, 0.0, 50.0]))
     T_b = oblique_pose(geo, T_a[:3, 3] + MOTIONS[motion], yaw_rad=0.02)
     img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
-    region = SearchRegion(_where_the_axis_meets_the_plane(T_a), 6.0, -0.5, 1.0)
+    region = SearchRegion(_where_the_axis_meets_the_plane(T_a), 4.0, -0.5, 1.0)
     whole = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM)
     band = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM, regions=[region])
     assert band.reason == ""
