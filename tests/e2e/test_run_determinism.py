@@ -85,14 +85,7 @@ def test_track_guided_search_through_the_services_is_deterministic_and_confirms(
     recording still gives the same bytes, and the scenes after a confirmed track only confirm it."""
     flight = simulate_small_flight(tmp_path / "flight.mcap", frames=7)
     outs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
-    # the small camera sees ~30 m at 50 m: a tighter cylinder (still holding a T-72 at any heading) than
-    # the default, so that a guided scene's window is less than the image
-    guided = (
-        "--set",
-        "tracking.guided_search=true",
-        "--set",
-        "tracking.k_search_radius=0.45",
-    )
+    guided = ("--set", "tracking.guided_search=true")
     done = [
         atr("run", str(flight), "--out", str(out), *SMALL_CAMERA, *guided, timeout_s=900)
         for out in outs
