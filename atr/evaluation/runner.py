@@ -319,7 +319,7 @@ def _recognize(
     stamp_ns: int,
     viewpoint: np.ndarray,
     sigma: np.ndarray | None = None,
-    cloud_regions: Sequence[SearchRegion] = (),
+    cloud_regions: Sequence[SearchRegion] | None = None,
 ) -> tuple[list[dict[str, Any]], dict[str, float]]:
     # The cloud crosses the bus as float32 (PointCloud points_m, sigma_m); the matcher widens it back.
     scene = np.ascontiguousarray(points, np.float32).astype(np.float64)
@@ -561,7 +561,7 @@ def _detect_sfm(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> lis
         scene.frame.stamp_ns,
         scene.pose.T_world_cam[:3, 3],
         cloud.sigma_m,
-        regions or (),
+        regions or [] if config.tracking.guided_sfm else None,
     )
     work.stages |= {k: v for k, v in rec.items() if k != "total"}
     return detections

@@ -37,6 +37,31 @@ from atr.tracking.config import TrackingConfig
 from atr.tracking.tracker import Tracker, TrackInput
 
 
+class SearchSchedule:
+    """Which scenes are searched whole: the first, every ``full_search_every``-th, and every scene while no
+    track is held. Kept by whoever decides first: the matcher in process (``GuidedSearch``), or the sfm
+    service, which matches a pair before the matcher sees it and tells it in the cloud where it looked.
+    """
+
+    def __init__(self, full_search_every: int) -> None:
+        self.full_search_every = full_search_every
+        self._since_whole: int | None = None  # scenes since the last whole search
+
+    def regions(self, held: Sequence[SearchRegion] | None) -> list[SearchRegion] | None:
+        """Where the next scene is searched given the held tracks' regions, or None for the whole scene."""
+        if not held or self._since_whole is None or self._since_whole + 1 >= self.full_search_every:
+            return None
+        return list(held)
+
+    def searched(self, *, whole: bool) -> None:
+        """Note that a scene was searched whole or only in regions."""
+        self._since_whole = 0 if whole else (self._since_whole or 0) + 1
+
+    def reset(self) -> None:
+        """Start again: the next scene is searched whole."""
+        self._since_whole = None
+
+
 class GuidedSearch:
     """The matcher with track-guided search, scene by scene: a whole search (``recognize``), or a
     confirmation of the live tracks' poses on their neighbourhoods (``verify_places``). With
@@ -59,7 +84,17 @@ class GuidedSearch:
         self.tracking = tracking
         self.tracker = Tracker(tracking)
         footprint_m = max((largest_footprint_m(t.points_m) for t in self.templates), default=0.0)
-        self.radius_m = tracking.k_search_radius * footprint_m
+        # never less than a template reaches from its origin (the track's place) at any heading: a
+        # CAD model's origin need not be its footprint's centre
+        reach_m = max(
+            (
+                float(np.linalg.norm(t.points_m[:, :2], axis=1).max())
+                for t in self.templates
+                if len(t.points_m)
+            ),
+            default=0.0,
+        )
+        self.radius_m = max(tracking.k_search_radius * footprint_m, reach_m)
         # the heights a vehicle at a track's place spans, from the track's position (the vehicle's origin)
         heights = [t.points_m[:, 2] for t in self.templates if len(t.points_m)]
         self.z_span_m = (
@@ -67,23 +102,22 @@ class GuidedSearch:
             if heights
             else (0.0, 0.0)
         )
-        self._since_whole: int | None = None  # scenes since the last whole-cloud search
+        self.schedule = SearchSchedule(tracking.full_search_every)
 
     def regions(self) -> list[SearchRegion] | None:
-        """Where the next scene is searched, or None for the whole cloud.
+        """Where the next scene is searched, or None for the whole cloud (``SearchSchedule``)."""
+        return self.schedule.regions(self.held_regions())
 
-        Guided scenes need a held track (confirmed, or lost for a few scenes) and search around every live
-        track, tentative ones too: a target a whole search saw once must get the scenes that confirm it,
-        or a held confuser's neighbourhood would be all the matcher looks at until the next whole search.
+    def held_regions(self) -> list[SearchRegion] | None:
+        """The cylinders around the live tracks while one is held, else None: what the matcher publishes
+        for the sfm service's own schedule.
+
+        A track is held when confirmed, or lost for a few scenes; then every live track is searched,
+        tentative ones too: a target a whole search saw once must get the scenes that confirm it, or a
+        held confuser's neighbourhood would be all the matcher looks at until the next whole search.
         """
-        c = self.tracking
         tracks = self.tracker.tracks
-        if (
-            not c.guided_search
-            or all(t.state == "tentative" for t in tracks)
-            or self._since_whole is None
-            or self._since_whole + 1 >= c.full_search_every
-        ):
+        if not self.tracking.guided_search or all(t.state == "tentative" for t in tracks):
             return None
         low, high = self.z_span_m
         return [
@@ -118,16 +152,16 @@ class GuidedSearch:
         stamp_ns: int,
         viewpoint_m: np.ndarray | None = None,
         scene_sigma_m: np.ndarray | None = None,
-        cloud_regions: Sequence[SearchRegion] = (),
+        cloud_regions: Sequence[SearchRegion] | None = None,
     ) -> RecognitionResult:
         """Recognise the templates in one scene: a whole search, or where ``regions`` says the tracks'
         poses are confirmed.
 
         Args as ``atr.recognition.recognize``, and ``stamp_ns``: the scene's stamp (the tracker ages its
-        tracks by the scenes between stamps); ``cloud_regions``: the regions the SfM step matched the
-        cloud in (it holds nothing elsewhere), searched instead of ``regions``. The SfM step takes them
-        from ``regions`` after the previous scene, so in a lock-step run they are the same; a cloud
-        says where it was matched so that its search does not depend on when guidance arrived.
+        tracks by the scenes between stamps); ``cloud_regions``: where the SfM step matched the cloud
+        when it decided (the sfm service keeps its own ``SearchSchedule``): the cloud is searched in
+        them, or whole when empty; None: where ``regions`` says. A cloud says where it was matched so
+        that its search does not depend on when guidance arrived.
 
         Returns:
             ``recognize``'s or ``verify_places``'s result; its stats gain "search": "whole" or the number
@@ -138,7 +172,7 @@ class GuidedSearch:
             not raise: the guidance starts again from no track, so the next scene is searched whole.
 
         """
-        regions = list(cloud_regions) or self.regions()
+        regions = self.regions() if cloud_regions is None else (list(cloud_regions) or None)
         points, sigma = np.asarray(scene_points_m), scene_sigma_m
         # a malformed cloud goes to recognize whole, which names what is wrong with it
         well_formed = points.ndim == 2 and points.shape[1] == 3
@@ -180,6 +214,6 @@ class GuidedSearch:
             self.tracker.update(inputs, stamp_ns)
         except InputError:  # scenes out of order: guide again from scratch
             self.tracker = Tracker(self.tracking)
-            self._since_whole = None
+            self.schedule.reset()
             return
-        self._since_whole = 0 if whole else (self._since_whole or 0) + 1
+        self.schedule.searched(whole=whole)

@@ -3,9 +3,9 @@
 For each PointCloud (SfM by default, or the LIDAR baseline with `pipeline.cloud_source=lidar`): uniform
 subsampling at 0.3 m, smooth-surface filtering, description with the templates' descriptor, kNNDR matching,
 geometric-consistency grouping, RANSAC per group, ICP verification (with `tracking.guided_search`, between
-whole-cloud searches it only confirms the targets it already tracks: atr.tracking.guided_search, and after each
-cloud publishes on atr/{uav}/guidance where the next one is to be looked at; a cloud the sfm matched only in
-such regions says so and is searched there). One Detections
+whole-cloud searches it only confirms the targets it already tracks: atr.tracking.guided_search; after each
+cloud it publishes on atr/{uav}/guidance the regions around the tracks it holds, and a cloud that says where
+the sfm matched it, in such regions or whole, is searched there). One Detections
 message per cloud, stamped with the cloud's stamp_ns (an empty list when nothing is accepted). RANSAC is seeded from the cloud's last
 frame_seq, so a replay gives byte-identical detections (whatever clouds were lost before). A cloud put again
 (the same seq from the same sfm, after a restart elsewhere) gets no second answer. Templates come from
@@ -85,7 +85,10 @@ def main(argv: list[str] | None = None) -> int:
                     stamp_ns=message.stamp_ns,
                     viewpoint_m=cloud.get("viewpoint_m"),
                     scene_sigma_m=None if sigma is None else np.asarray(sigma, np.float64),
-                    cloud_regions=regions_from_array(cloud.get("regions_m", np.zeros((0, 5)))),
+                    # where the sfm matched the pair, when it decided (it keeps the schedule then)
+                    cloud_regions=regions_from_array(cloud["regions_m"])
+                    if "regions_m" in cloud
+                    else None,
                 )
                 if config.tracking.guided_search:
                     # before the Detections: in lock-step the sfm has it before the next frame
@@ -93,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
                         keys.guidance(args.uav),
                         {
                             "stamp_ns": message.stamp_ns,
-                            "regions_m": regions_to_array(search.regions() or []),
+                            "regions_m": regions_to_array(search.held_regions() or []),
                         },
                     )
                 node.publish(

@@ -10,8 +10,9 @@ cloud, a frame whose IMU batch never arrived an ErrorReport (when a later batch 
 `IMU_GRACE_S` after its image when nothing later comes). An input of a frame already
 answered (sent again after a restart downstream) puts that frame's cloud again, the same message.
 A restarted process reports the input a killed one had in hand (its frame is answered) and goes on.
-With `tracking.guided_search` and `sgm` it matches only the image window of atr_matcher's latest guidance
-(atr/{uav}/guidance: the regions where the next scene is looked at) and says so in the cloud's `regions_m`.
+With `tracking.guided_search` and `sgm` it keeps the search's schedule (atr.tracking.guided_search): between
+whole pairs it matches only the image window of the regions around atr_matcher's held tracks (its latest
+atr/{uav}/guidance), and says in each cloud's `regions_m` where it matched (no rows: whole).
 
 Example:
     atr service sfm --uav uav1 --set sfm.matcher=surf --set sfm.pair_gap_frames=2
@@ -29,6 +30,7 @@ from atr.errors import InputError
 from atr.regions import SearchRegion, regions_from_array, regions_to_array
 from atr.sfm import reconstruct
 from atr.sfm.pairing import Answer, FramePairer, Missing, NoPartner
+from atr.tracking.guided_search import SearchSchedule
 from bus import keys
 from bus.clouds import compact_cloud
 from bus.node import Message
@@ -48,7 +50,7 @@ def _cloud(
     sigma: np.ndarray,
     viewpoint: np.ndarray,
     note: str | None = None,
-    regions: Sequence[SearchRegion] = (),
+    regions: Sequence[SearchRegion] | None = None,
 ) -> dict:
     message = {
         "stamp_ns": stamp_ns,
@@ -58,7 +60,7 @@ def _cloud(
         "sigma_m": np.ascontiguousarray(sigma, np.float32),
         "viewpoint_m": np.asarray(viewpoint, np.float64),
     }
-    if regions:
+    if regions is not None:  # where it was matched when guided search decides here ([]: whole)
         message["regions_m"] = regions_to_array(regions)
     return message | ({"note": note} if note else {})
 
@@ -73,9 +75,13 @@ def main(argv: list[str] | None = None) -> int:
     pairer = FramePairer(config.pair_gap_frames)
     inputs = [keys.imu(args.uav), keys.image(args.uav), keys.relative_pose(args.uav)]
     tracking = full_config.tracking
-    if tracking.guided_search and tracking.guided_sfm and config.matcher == "sgm":
+    guided = tracking.guided_search and tracking.guided_sfm and config.matcher == "sgm"
+    if guided:
         inputs.append(keys.guidance(args.uav))
-    regions: list[SearchRegion] = []  # where atr_matcher looks next (its latest guidance)
+    # track-guided search decides here, before the matcher sees the pair: the regions around the
+    # matcher's held tracks (its latest guidance) and which pairs are matched whole
+    held: list[SearchRegion] = []
+    schedule = SearchSchedule(tracking.full_search_every)
     with start_node("sfm", args, inputs=inputs) as node:
         node.ready()
 
@@ -103,6 +109,7 @@ def main(argv: list[str] | None = None) -> int:
                 note = f"no image of frame {frames[0]} was accepted (never arrived, or rejected)"
                 empty(image_b, frames, pose["T_world_cam_t1"][:3, 3], note)
                 return
+            regions = (schedule.regions(held) or []) if guided else None
             cloud = reconstruct(
                 result.image_t["data"],
                 image_b["data"],
@@ -111,8 +118,9 @@ def main(argv: list[str] | None = None) -> int:
                 pose["T_world_cam_t1"],
                 config,
                 image_b.get("distortion"),
-                regions,
+                regions or (),
             )
+            schedule.searched(whole=not regions)
             publish_cloud(
                 _cloud(
                     image_b["stamp_ns"],
@@ -151,14 +159,15 @@ def main(argv: list[str] | None = None) -> int:
             for message in node.events(timeout_s=IMU_GRACE_S / 4):
                 with node.handling(message):
                     if message.type_name == "SearchGuidance":
-                        regions = regions_from_array(message.data["regions_m"])
+                        held = regions_from_array(message.data["regions_m"])
                         continue
                     if message.type_name != "RelativePose" and message.source != sensor:
                         # another sensor source (or replay): a new flight, whose frame numbers start
                         # again; a re-send comes from the same publisher and is a repeat
                         if sensor is not None:
                             pairer, waiting = FramePairer(config.pair_gap_frames), {}
-                            regions = []
+                            held = []
+                            schedule.reset()
                         sensor = message.source
                     if message.type_name == "ImuBatch":
                         for missing in pairer.add_imu(int(message.data["frame_seq"])):

@@ -88,13 +88,17 @@ def test_without_guidance_it_is_recognize(world) -> None:
 
 def test_search_radius_is_a_multiple_of_the_largest_footprint(world) -> None:
     cfg, templates, _, _ = world
-    one = GuidedSearch(templates, cfg, TrackingConfig(guided_search=True))
-    two = GuidedSearch(
-        templates, cfg, dataclasses.replace(TrackingConfig(guided_search=True), k_search_radius=2.0)
-    )
-    assert two.radius_m == pytest.approx(2.0 * one.radius_m)
-    tank_xy = np.asarray(templates[0].points_m)[:, :2]
-    assert one.radius_m >= float(np.linalg.norm(tank_xy.max(axis=0) - tank_xy.min(axis=0)))
+
+    def radius_m(k: float) -> float:
+        tracking = dataclasses.replace(TrackingConfig(guided_search=True), k_search_radius=k)
+        return GuidedSearch(templates, cfg, tracking).radius_m
+
+    assert radius_m(2.0) == pytest.approx(2.0 * radius_m(1.0))
+    # a template reaches no further from its origin than the default cylinder at any heading, and a
+    # cylinder is never smaller than that reach, however small k is
+    reach_m = max(float(np.linalg.norm(t.points_m[:, :2], axis=1).max()) for t in templates)
+    assert radius_m(TrackingConfig().k_search_radius) > reach_m
+    assert radius_m(0.01) == pytest.approx(reach_m)
 
 
 def test_a_tentative_track_is_searched_beside_a_held_one(world) -> None:
