@@ -7,11 +7,13 @@ track, and every template is laid at each track's fused pose and refined by ICP
 (``atr.recognition.verify_places``), with no description, matching, grouping or RANSAC; acceptance and
 the place competition are the whole search's, so a place still goes to the template that explains it
 best. The whole cloud is searched every ``tracking.full_search_every``-th scene and whenever no track is
-held, so a target that appears, or one a false track hid, is found there.
+held, so a target that appears, or one a false track hid, is found there (``SearchSchedule``). The
+dense SfM step of a guided scene matches only the image window that holds the cylinders
+(``tracking.guided_sfm``, ``atr.sfm.dense``).
 
 The cylinder's radius is ``tracking.k_search_radius`` x the largest template's footprint (its length +
-width): a vehicle standing at the track's place is inside it at any heading, and so is the ground around
-it that ground removal needs. The tracker is the tracker service's own object (``atr.tracking.Tracker``)
+width), and never less than a template reaches from its origin: a vehicle standing at the track's place
+is inside it at any heading, and so is some ground around it, which ground removal needs. The tracker is the tracker service's own object (``atr.tracking.Tracker``)
 fed with the matcher's detections, so the guidance is deterministic: the same clouds in the same order
 give the same searches. A restarted matcher starts with no track and searches whole clouds until it holds
 one again.
