@@ -48,12 +48,17 @@ MOTIONS = {
 }
 
 
+def moved_pair(geo, motion: str) -> tuple[np.ndarray, np.ndarray]:
+    """Camera a 50 m above the plane, looking obliquely; camera b moved by MOTIONS[motion]."""
+    T_a = oblique_pose(geo, np.array([0.0, 0.0, 50.0]))
+    return T_a, oblique_pose(geo, T_a[:3, 3] + MOTIONS[motion], yaw_rad=0.02)
+
+
 @pytest.mark.parametrize("motion", sorted(MOTIONS))
 def test_correspondences_follow_the_plane_whichever_way_the_camera_moves(
     geo, plane_scene, motion: str
 ) -> None:
-    T_a = oblique_pose(geo, np.array([0.0, 0.0, 50.0]))
-    T_b = oblique_pose(geo, T_a[:3, 3] + MOTIONS[motion], yaw_rad=0.02)
+    T_a, T_b = moved_pair(geo, motion)
     gray_a = as_gray_u8(plane_scene.render(T_a), "a")
     gray_b = as_gray_u8(plane_scene.render(T_b), "b")
     pa, pb, stats, reason = sgm_correspondences(gray_a, gray_b, plane_scene.K, None, T_a, T_b, SGM)
@@ -195,8 +200,7 @@ def _where_the_axis_meets_the_plane(T_a: np.ndarray) -> np.ndarray:
 def test_a_search_region_matches_its_window_as_the_whole_pair_does(
     geo, plane_scene, motion: str
 ) -> None:
-    T_a = oblique_pose(geo, np.array([0.0, 0.0, 50.0]))
-    T_b = oblique_pose(geo, T_a[:3, 3] + MOTIONS[motion], yaw_rad=0.02)
+    T_a, T_b = moved_pair(geo, motion)
     img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
     region = SearchRegion(_where_the_axis_meets_the_plane(T_a), 4.0, -0.5, 1.0)
     whole = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM)
@@ -216,8 +220,7 @@ def test_a_search_region_matches_its_window_as_the_whole_pair_does(
 def test_a_search_region_outside_the_images_gives_an_empty_cloud_with_the_reason(
     geo, plane_scene
 ) -> None:
-    T_a = oblique_pose(geo, np.array([0.0, 0.0, 50.0]))
-    T_b = oblique_pose(geo, T_a[:3, 3] + MOTIONS["right"], yaw_rad=0.02)
+    T_a, T_b = moved_pair(geo, "right")
     far = SearchRegion(_where_the_axis_meets_the_plane(T_a) + 500.0, 6.0, -0.5, 1.0)
     img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
     cloud = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM, regions=[far])
