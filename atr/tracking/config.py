@@ -40,6 +40,11 @@ class TrackingConfig:
             adds its score to its class's evidence, and the track's class is the leading one. Look-alike
             templates that win one vehicle's place in turn along an orbit then make one track of the
             class seen most, not one track per class (ours, off by default: docs/tracking.md).
+        class_recurs: with class_votes, a place confirms only once its leading class itself has been
+            detected there confirm_hits times: a place that look-alike templates win in turn, each
+            once, stays tentative (ours; on, so that class_votes brings it: chosen on tuning seeds
+            101-102, where it kept most of the votes' track F1 and the false confirmed tracks of one
+            track per class, docs/tracking.md).
         guided_search: between whole-cloud searches the matcher only confirms, by ICP at their poses, the
             tracks its own detections make (``atr.tracking.guided_search``; ours, off by default:
             docs/tracking.md).
@@ -66,6 +71,7 @@ class TrackingConfig:
     flip_evidence: int = bounded(2, ge=1)
     supporting_max: int = bounded(32, ge=1)
     class_votes: bool = False
+    class_recurs: bool = True
     guided_search: bool = False
     guided_sfm: bool = True
     full_search_every: int = bounded(4, ge=1)

@@ -71,6 +71,7 @@ class Track:
         supporting_stamps_ns: stamps of the latest supporting detections, oldest first.
         class_evidence: with ``TrackingConfig.class_votes``, the summed scores of the detections of
             each class at the track's place.
+        class_hits: with ``TrackingConfig.class_votes``, how many detections of each class it had.
 
     """
 
@@ -87,6 +88,7 @@ class Track:
     last_seen_ns: int = 0
     supporting_stamps_ns: list[int] = field(default_factory=list)
     class_evidence: dict[str, float] = field(default_factory=dict)
+    class_hits: dict[str, int] = field(default_factory=dict)
     _window: list[bool] = field(default_factory=list, repr=False)
     _misses: int = 0
     _flips: int = 0
@@ -269,7 +271,15 @@ class Tracker:
             return
         evidence = track.class_evidence
         evidence[d.target] = evidence.get(d.target, 0.0) + float(d.score)
+        track.class_hits[d.target] = track.class_hits.get(d.target, 0) + 1
         track.target = max(evidence, key=lambda name: evidence[name])  # first of equals
+
+    def _class_recurs(self, track: Track) -> bool:
+        """Whether the track's class was itself detected confirm_hits times (``class_recurs``)."""
+        c = self.config
+        return not (c.class_votes and c.class_recurs) or (
+            track.class_hits.get(track.target, 0) >= c.confirm_hits
+        )
 
     def _fuse(self, track: Track, d: TrackInput, stamp_ns: int) -> None:
         c = self.config
@@ -351,7 +361,7 @@ class Tracker:
             if track._misses > self._max_misses(track):
                 continue  # deleted
             if track.state == "tentative":
-                if sum(track._window) >= c.confirm_hits:
+                if sum(track._window) >= c.confirm_hits and self._class_recurs(track):
                     track.state = "confirmed"
             elif seen:
                 track.state = "confirmed"

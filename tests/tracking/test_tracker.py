@@ -272,3 +272,30 @@ def test_class_votes_keep_a_place_alive_through_a_turned_look_alike_without_turn
     assert track.state == "confirmed" and track.hits == 5  # the place was seen: fused, not missed
     assert track.yaw_rad == pytest.approx(TARGET_YAW, abs=0.05)  # its heading did not pull
     assert track.target == "t72"
+
+
+def test_a_place_confirms_as_a_class_only_once_that_class_recurs():
+    """A place that look-alikes win in turn, each class once, is not yet a confirmed target of any."""
+
+    def states(recurs: bool, classes: list[str]) -> list[tuple[str, str]]:
+        tracker = Tracker(TrackingConfig(class_votes=True, class_recurs=recurs))
+        history = []
+        for k, name in enumerate(classes):
+            (track,) = tracker.update([TrackInput(name, TARGET_M, TARGET_YAW, 0.5)], stamp(k))
+            history.append((track.state, track.target))
+        return history
+
+    # two scenes, two classes: votes alone confirm the place on the second scene
+    assert states(False, ["m1", "t72"])[-1][0] == "confirmed"
+    assert states(True, ["m1", "t72"])[-1][0] == "tentative"
+    # ... until its leading class has been seen confirm_hits (2) times
+    assert states(True, ["m1", "t72", "t72"]) == [
+        ("tentative", "m1"),
+        ("tentative", "m1"),
+        ("confirmed", "t72"),
+    ]
+    # per class (no votes) the rule changes nothing
+    tracker = Tracker(TrackingConfig(class_recurs=True))
+    for k in range(2):
+        (track,) = tracker.update([TrackInput("t72", TARGET_M, TARGET_YAW, 0.5)], stamp(k))
+    assert track.state == "confirmed"
