@@ -24,8 +24,9 @@ from atr.sfm.triangulation import fixation_depth_m, relative_camera_pose
 # every block that matches a region's pixel inside. Across it, semi-global matching's top-down path and its
 # speckle filter see further: with two blocks a window at 100 m and 0 degrees kept 613 of the whole pair's
 # 754 points in its region, with eight 678, with sixteen all; on tuning seeds 101-102 (T-72, every 5th
-# scene) pooled F1 0.926 / 0.928 / 0.931 (the whole pair's) at 1.4-1.5 / 1.6-1.7 / 1.8-2.0 x the reference
-# workload per scene (docs/sfm.md, "Matching only where the search looks").
+# scene, cylinders of 1.0 x the footprint) pooled F1 0.926 / 0.928 / 0.931 (the whole pair's) at
+# 1.4-1.5 / 1.6-1.7 / 1.8-2.0 x the reference workload per scene (docs/sfm.md, "Matching only where the
+# search looks").
 WINDOW_MARGIN_ALONG_BLOCKS = 2.0
 WINDOW_MARGIN_ACROSS_BLOCKS = 8.0
 
