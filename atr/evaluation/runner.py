@@ -30,7 +30,7 @@ from atr.errors import AtrError, ConfigError, InputError
 from atr.imu import NavState
 from atr.imu.pose_track import FramePose, PoseTrack
 from atr.recognition import DESCRIPTORS, Template
-from atr.regions import SearchRegion
+from atr.regions import SearchRegion, regions_to_array
 from atr.sfm import reconstruct
 from atr.sfm.pairing import FramePairer, Pair
 from atr.sim.config import SimConfig
@@ -355,14 +355,14 @@ class _ArmInputs:
 @dataclass
 class _Scene:
     """One scene as every arm sees it: the frame, its truth, its SfM pair and integrated pose, and the
-    clouds reconstructed so far (one per SfM matcher, shared by the descriptors).
+    clouds reconstructed so far (one per SfM matcher and search window, shared by the descriptors).
     """
 
     frame: SensorFrame
     truth: list[dict[str, Any]]
     pair: Pair | None
     pose: FramePose
-    clouds: dict[str, tuple[Any, float]] = field(default_factory=dict)
+    clouds: dict[tuple[str, bytes], tuple[Any, float]] = field(default_factory=dict)
 
 
 @dataclass
@@ -543,8 +543,9 @@ def _detect_lidar(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> l
 def _detect_sfm(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> list[dict[str, Any]]:
     config = inputs.configs[arm]
     search = inputs.searches[arm]
-    # with track-guided search the SfM step matches only where the next search looks
-    regions = search.regions() if config.tracking.guided_sfm else None
+    # with track-guided search the SfM step decides, as the sfm service does: it matches only where
+    # the search looks ([]: the whole pair) and the search follows; else the search decides itself
+    regions = (search.regions() or []) if config.tracking.guided_sfm else None
     cloud, sfm_ms = _cloud(scene, config, regions or ())
     # the scene's time is its reconstruction (done once, shared by the descriptors) + its matcher
     work.t0 = time.perf_counter() - sfm_ms / 1e3
@@ -561,7 +562,7 @@ def _detect_sfm(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> lis
         scene.frame.stamp_ns,
         scene.pose.T_world_cam[:3, 3],
         cloud.sigma_m,
-        regions or [] if config.tracking.guided_sfm else None,
+        regions,
     )
     work.stages |= {k: v for k, v in rec.items() if k != "total"}
     return detections
@@ -574,9 +575,7 @@ def _cloud(
     time, ms (reconstructed once per matcher and regions).
     """
     matcher = config.sfm.matcher
-    key = matcher + "".join(
-        f" {r.centre_m.tolist()} {r.radius_m} {r.z_min_m} {r.z_max_m}" for r in regions
-    )
+    key = (matcher, regions_to_array(regions).tobytes())
     if key not in scene.clouds:
         pair = scene.pair
         if pair is None:
