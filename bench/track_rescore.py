@@ -2,10 +2,11 @@
 
 The tracker runs offline over each run's stored detections, as `atr eval` does (`track_score`), once with
 the defaults and once with `--set tracking.FIELD=VALUE` overrides; prints pooled TP / FP / FN of the
-confirmed tracks per scene, track F1 and false confirmed tracks.
+confirmed tracks per scene, track F1 and false confirmed tracks; with `--per-run`, each run's track F1,
+scenes to first confirmation and false confirmed tracks (the tracks issue's goals are per run).
 Prints figures; asserts nothing. Example (the class votes of docs/tracking.md):
 
-    python bench/track_rescore.py --results results --set tracking.class_votes=true
+    python bench/track_rescore.py --results results --set tracking.class_votes=true [--per-run]
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ def main() -> None:
     )
     parser.add_argument("--results", type=Path, required=True, help="an atr eval --results folder")
     parser.add_argument("--set", dest="overrides", action="append", default=[])
+    parser.add_argument("--per-run", action="store_true", help="also print each run's figures")
     args = parser.parse_args()
     base = load_config(None, [])
     other = load_config(None, args.overrides)
@@ -51,6 +53,14 @@ def main() -> None:
             score = track_score(records, flight.target, present, config.tracking)
             tp, fp, fn = tp + score.counts.tp, fp + score.counts.fp, fn + score.counts.fn
             false_tracks += score.false_tracks
+            if args.per_run:
+                c = score.counts
+                print(
+                    f"  {flight.target} {flight.scenario}-{flight.run} seed {flight.seed}: "
+                    f"track F1 {2 * c.tp / max(1, 2 * c.tp + c.fp + c.fn):.3f}, "
+                    f"confirmed after {score.scenes_to_confirm:g} scenes, "
+                    f"{score.false_tracks} false tracks"
+                )
         f1 = 2 * tp / max(1, 2 * tp + fp + fn)
         scenes = sum(len(r) for _, r in runs)
         print(

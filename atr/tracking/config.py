@@ -36,6 +36,11 @@ class TrackingConfig:
         flip_evidence: detections at a track's place whose heading is 180 degrees off it before the track
             treats heading as known only modulo 180 degrees (a vehicle whose ends look alike to the matcher).
         supporting_max: how many of the latest supporting detections' stamps a track keeps.
+        place_hits: a detection of a track's class at its place that association did not give it (its
+            heading outside the gate: most often 180 degrees off) is a hit: one vehicle per place, so
+            it counts towards M of N and its position is fused; its heading is not. Chosen on tuning
+            seed 101 (every scene of scenarios 1-2): one more TP scene, 100 m 0 degrees confirmed a
+            scene sooner, the same false tracks (docs/tracking.md).
         class_votes: a track is a place, not a class: detections of any class associate with it, each
             adds its score to its class's evidence, and the track's class is the leading one. Look-alike
             templates that win one vehicle's place in turn along an orbit then make one track of the
@@ -70,6 +75,7 @@ class TrackingConfig:
     delete_after_misses: int = bounded(20, ge=1)
     flip_evidence: int = bounded(2, ge=1)
     supporting_max: int = bounded(32, ge=1)
+    place_hits: bool = True
     class_votes: bool = False
     class_recurs: bool = True
     guided_search: bool = False

@@ -154,8 +154,9 @@ class Tracker:
         assigned = self._associate(detections)
         for t, d in assigned.items():
             self._fuse(self.tracks[t], detections[d], stamp_ns)
-        self._spawn_or_vote(detections, set(assigned.values()), stamp_ns)
-        self._age(set(assigned), scenes, stamp_ns)
+        hit = {self.tracks[t].id for t in assigned}
+        self._spawn_or_vote(detections, set(assigned.values()), hit, stamp_ns)
+        self._age(hit, scenes, stamp_ns)
         self._last_stamp_ns = stamp_ns
         return list(self.tracks)
 
@@ -281,7 +282,8 @@ class Tracker:
             track.class_hits.get(track.target, 0) >= c.confirm_hits
         )
 
-    def _fuse(self, track: Track, d: TrackInput, stamp_ns: int) -> None:
+    def _fuse(self, track: Track, d: TrackInput, stamp_ns: int, heading: bool = True) -> None:
+        """Fold a detection into the track: position always, heading when ``heading`` and it fits."""
         c = self.config
         self._vote(track, d)
         R = c.position_sigma_m**2 * np.eye(3)
@@ -289,7 +291,7 @@ class Tracker:
         track.position_m = track.position_m + K @ (np.asarray(d.position_m) - track.position_m)
         track.P_position = (np.eye(3) - K) @ track.P_position
         track.P_position = 0.5 * (track.P_position + track.P_position.T)  # keep it symmetric
-        if d.yaw_rad is not None and self._heading_fits(track, d):
+        if heading and d.yaw_rad is not None and self._heading_fits(track, d):
             r_yaw = math.radians(c.yaw_sigma_deg) ** 2
             if math.isfinite(track.yaw_var):
                 period = math.pi if track.yaw_ambiguous else 2 * math.pi
@@ -305,11 +307,13 @@ class Tracker:
         track.supporting_stamps_ns = [*track.supporting_stamps_ns, stamp_ns][-c.supporting_max :]
 
     def _spawn_or_vote(
-        self, detections: Sequence[TrackInput], used: set[int], stamp_ns: int
+        self, detections: Sequence[TrackInput], used: set[int], hit: set[int], stamp_ns: int
     ) -> None:
         """A detection no track took starts a tentative track, unless it sits at a track's place: one
         vehicle per place, so it is that track's target seen with another heading (a vote for the
-        180-degree ambiguity when it is 180 degrees off; with ``class_votes``, for its class too).
+        180-degree ambiguity when it is 180 degrees off; with ``class_votes``, for its class too;
+        with ``place_hits``, a hit of a track no other detection hit this scene, its position fused).
+        ``hit``: ids of the tracks hit this scene, updated.
         """
         c = self.config
         for j, d in enumerate(detections):
@@ -323,10 +327,14 @@ class Tracker:
             at_place = [(t, g) for t, g in at_place if g[0] <= c.k_gate**2]
             if at_place:
                 track, (_, _, flipped) = min(at_place, key=lambda tg: (tg[1][0], tg[0].id))
-                self._vote(track, d)
                 if flipped and not track.yaw_ambiguous:
                     track._flips += 1
                     track.yaw_ambiguous = track._flips >= c.flip_evidence
+                if c.place_hits and track.id not in hit:
+                    self._fuse(track, d, stamp_ns, heading=False)  # votes too
+                    hit.add(track.id)
+                else:
+                    self._vote(track, d)
                 continue
             yaw = d.yaw_rad
             track = Track(
@@ -349,12 +357,12 @@ class Tracker:
     def _age(self, hit: set[int], scenes: int, stamp_ns: int) -> None:
         c = self.config
         kept = []
-        for t, track in enumerate(self.tracks):
+        for track in self.tracks:
             if track.first_seen_ns == stamp_ns:  # born this scene
                 track.state = "confirmed" if c.confirm_hits <= 1 else "tentative"
                 kept.append(track)
                 continue
-            seen = t in hit
+            seen = track.id in hit
             missed = scenes - 1 + (0 if seen else 1)  # a gap's scenes are misses too
             track._window = [*track._window, *([False] * (scenes - 1)), seen][-c.confirm_window :]
             track._misses = 0 if seen else track._misses + missed

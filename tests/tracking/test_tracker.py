@@ -132,16 +132,19 @@ def test_a_gap_of_many_scenes_ages_tracks_by_the_scenes_it_spans():
 
 
 def test_heading_gate_and_one_vehicle_per_place():
-    tracker = Tracker()
-    for k in range(3):
-        tracker.update([det([0, 0, 0], 0.0)], stamp(k))
-    # the same place at 90 degrees: not this track's target, and no second track at its place
-    (track,) = tracker.update([det([0, 0, 0], math.pi / 2)], stamp(3))
-    assert (track.id, track.hits, track.state) == (1, 3, "lost")
+    for place_hits, hits, state in ((False, 3, "lost"), (True, 4, "confirmed")):
+        tracker = Tracker(TrackingConfig(place_hits=place_hits))
+        for k in range(3):
+            tracker.update([det([0, 0, 0], 0.0)], stamp(k))
+        # the same place at 90 degrees: outside the heading gate, and no second track at its place;
+        # with place_hits (the default) it is this vehicle seen with a wrong heading: a hit
+        (track,) = tracker.update([det([0, 0, 0], math.pi / 2)], stamp(3))
+        assert (track.id, track.hits, track.state) == (1, hits, state)
+        assert track.yaw_rad == 0.0, "a heading outside the gate is never fused"
 
 
 def test_heading_ambiguity_only_once_the_detections_show_it():
-    config = TrackingConfig(flip_evidence=2)
+    config = TrackingConfig(flip_evidence=2, place_hits=False)
     tracker = Tracker(config)
     for k in range(3):
         tracker.update([det([0, 0, 0], 0.1)], stamp(k))
@@ -150,6 +153,20 @@ def test_heading_ambiguity_only_once_the_detections_show_it():
     assert hits == [3, 3, 4], "two flipped detections are evidence; the third is fused"
     assert track.yaw_ambiguous and len(tracker.tracks) == 1
     assert abs(math.remainder(track.yaw_rad - 0.1, math.pi)) < 1e-9
+
+
+def test_a_turned_detection_at_the_place_is_a_hit_with_place_hits():
+    # a new vehicle seen next with its ends swapped: without place_hits that scene is a miss
+    scenes = [det([0, 0, 0], 0.1), det([0.3, 0, 0], 0.1 + math.pi), det([0.3, 0, 0], 0.1)]
+    states = {}
+    for place_hits in (False, True):
+        tracker = Tracker(TrackingConfig(place_hits=place_hits))
+        states[place_hits] = [tracker.update([d], stamp(k))[0].state for k, d in enumerate(scenes)]
+        track = tracker.tracks[0]
+        assert abs(track.yaw_rad - 0.1) < 0.05, "a turned detection's heading is not fused"
+    assert states[False] == ["tentative", "tentative", "confirmed"]
+    assert states[True] == ["tentative", "confirmed", "confirmed"]
+    assert track.hits == 3 and 0.1 < track.position_m[0] < 0.3, "its position was fused"
 
 
 def test_bad_input_is_refused_and_leaves_the_tracks_unchanged():
