@@ -178,6 +178,14 @@ class MatcherConfig:
             this of vertical: a vehicle stands on its wheels or tracks on drivable ground (10 deg is an
             18 % slope), and with no descriptor evidence a tilted fit is a template draped over a part
             of something else.
+        max_fits_per_place: a template's hypothesis is not verified once this many of its accepted
+            fits stand within ``k_nms`` of where it would place the target (0: every hypothesis is
+            verified). A time setting: the place competition takes each template's strongest fit per
+            place, and most hypotheses of a found vehicle end in the same fit. Tuning seeds 101-102,
+            T-72 and its two confusers: 4 gives the same F1 (0.939 / 0.922 -> 0.939 / 0.919) with
+            ICP 74-76 -> 41-42 ms and 8-10 % less time per scene; 2 and 1 lose targets; with the
+            whole family as templates 4 loses some (F1 0.758 -> 0.746), so it is off (docs/
+            recognition.md, "Repeated hypotheses").
 
     """
 
@@ -211,6 +219,7 @@ class MatcherConfig:
     cue_places: bool = False
     cue_headings: int = bounded(4, ge=1)
     cue_max_tilt_deg: float = bounded(10.0, gt=0, le=90)
+    max_fits_per_place: int = bounded(0, ge=0)
 
     def __post_init__(self) -> None:
         """Validate every field; raise ConfigError naming the bad value."""

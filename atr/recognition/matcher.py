@@ -323,7 +323,7 @@ class _Search:
         with self.clock.stage("ransac"):
             hyps, n_ransac = self._hypotheses(views, model_kp, matches, groups)
         with self.clock.stage("icp"):
-            accepted = self._verify(tpl, views, hyps)
+            accepted = self._verify(tpl, views, hyps, skip_fitted=True)
         return {
             "target": tpl.target,
             "descriptor": tpl.descriptor,
@@ -442,9 +442,12 @@ class _Search:
         views: TemplateViews,
         hyps: list[tuple[int, Hypothesis]],
         segments: Sequence[np.ndarray] | None = None,
+        skip_fitted: bool = False,
     ) -> int:
         """ICP verification and acceptance (§II-B-2 overlap, our clutter and ground rules); a
-        hypothesis cued on a blob (``segments``: its vertices) must also explain the blob.
+        hypothesis cued on a blob (``segments``: its vertices) must also explain the blob. With
+        ``skip_fitted``, a hypothesis where the template already has ``max_fits_per_place`` fits is
+        not verified.
         """
         if not hyps:
             return 0
@@ -465,6 +468,10 @@ class _Search:
         view_models: dict[int, steps.PointSet] = {}
         accepted = 0
         for n, (vi, h) in enumerate(hyps):
+            if skip_fitted and self._place_is_fitted(
+                tpl.target, h.T_scene_model[:3, :3] @ centroid_m + h.T_scene_model[:3, 3]
+            ):
+                continue
             if vi not in view_models:
                 view_models[vi] = steps.PointSet(model_all[views.slices[vi][0]])
             v = steps.verify_with_icp(
@@ -510,6 +517,22 @@ class _Search:
                 )
                 self.candidates.append((det, candidate))
         return accepted
+
+    def _place_is_fitted(self, target: str, centre_m: np.ndarray) -> bool:
+        """Whether ``max_fits_per_place`` accepted fits of this target already stand within ``nms_m``
+        of a hypothesis's centre: the competition takes one template's strongest fit per place, and
+        the hypotheses verified first come from the largest groups.
+        """
+        most = self.config.matcher.max_fits_per_place
+        if most <= 0:
+            return False
+        near = sum(
+            1
+            for _, c in self.candidates
+            if c.target == target
+            and np.linalg.norm(c.centre_m[:2] - centre_m[:2]) < self.config.nms_m
+        )
+        return near >= most
 
     def _cued_fit(self, model: steps.PointSet, T_scene_model: np.ndarray, idx: np.ndarray) -> bool:
         """Whether a hypothesis cued on a blob stands upright (``cue_max_tilt_deg``) and explains at

@@ -264,3 +264,17 @@ def test_a_cued_place_calls_neither_the_truck_nor_bare_clutter_a_t72(vehicles, t
         scene, _ = _scene(vehicles, name)
         res = recognize(scene, tpls, cued, seed=0, viewpoint_m=VIEWPOINT)
         assert all(d.target != "t72" for d in res.detections), (name, res.stats)
+
+
+def test_one_fit_per_place_verifies_fewer_hypotheses_and_finds_the_t72(vehicles, templates):
+    cfg, tpls = templates
+    scene, T = _scene(vehicles, "t72")
+    every = recognize(scene, tpls, cfg, seed=0, viewpoint_m=VIEWPOINT)
+    one = recognize(
+        scene, tpls, dataclasses.replace(cfg, max_fits_per_place=1), seed=0, viewpoint_m=VIEWPOINT
+    )
+    assert len(one.stats["verified"]) < len(every.stats["verified"])
+    t72_fits = [v for v in one.stats["verified"] if v[0] == "t72"]
+    assert t72_fits, one.stats
+    assert one.detections[0].target == "t72"
+    assert np.linalg.norm(one.detections[0].T_world_target[:3, 3] - T[:3, 3]) < 2.0
