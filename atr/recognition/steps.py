@@ -621,6 +621,9 @@ class VerifySettings:
             than the ICP itself. ICP can only pair vertices within the gate of the moving model, so the
             result is the same as on the whole scene as long as the model's centre moves less than this;
             a hypothesis whose refined centre moved further is refined again on the whole scene.
+        point_to_plane: ICP minimises the distances to the scene's local planes (normals from its
+            neighbours within ``icp_gate_m``) instead of to its points: two surfaces sampled apart do
+            not hold each other at the sampling's offsets.
 
     """
 
@@ -630,6 +633,7 @@ class VerifySettings:
     ground_slab_m: float = 0.0
     k_clutter_sigma: float = 0.0
     icp_reach_m: float | None = None
+    point_to_plane: bool = False
 
 
 @dataclass
@@ -754,12 +758,18 @@ def _refine_with_icp(
     src = _open3d_cloud(model_points)
 
     def icp(target: o3d.geometry.PointCloud) -> np.ndarray:
+        estimation = o3d.pipelines.registration.TransformationEstimationPointToPoint()
+        if settings.point_to_plane:
+            target.estimate_normals(
+                o3d.geometry.KDTreeSearchParamHybrid(radius=float(icp_gate_m), max_nn=16)
+            )
+            estimation = o3d.pipelines.registration.TransformationEstimationPointToPlane()
         result = o3d.pipelines.registration.registration_icp(
             src,
             target,
             float(icp_gate_m),
             T_initial,
-            o3d.pipelines.registration.TransformationEstimationPointToPoint(),
+            estimation,
             o3d.pipelines.registration.ICPConvergenceCriteria(
                 max_iteration=int(settings.icp_iterations)
             ),
