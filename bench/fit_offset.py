@@ -1,7 +1,7 @@
 """The matcher's fit offset in the target's frame on synthetic clouds (no SfM), by noise level.
 
 A template fitted to clouds of its own vehicle seen from every azimuth should scatter around the true pose;
-a mean offset that stays after averaging over the azimuths is a bias of the fit itself (template, ICP or
+an offset that stays in the median over the azimuths is a bias of the fit itself (template, ICP or
 placement), which fusing a track along an orbit cannot remove (docs/tracking.md). The T-72 stands in a
 synthetic scene (ground, clutter) sampled from one viewpoint per azimuth, with Gaussian noise; prints per
 noise level the median offset along and across the vehicle's heading and in height, and the median error.
