@@ -186,11 +186,12 @@ class MatcherConfig:
             ICP 74-76 -> 41-42 ms and 8-10 % less time per scene; 2 and 1 lose targets; with the
             whole family as templates 4 loses some (F1 0.758 -> 0.746), so it is off (docs/
             recognition.md, "Repeated hypotheses").
-        icp_point_to_plane: verification's ICP minimises distances to the scene's local planes rather
-            than to its points (``steps.VerifySettings.point_to_plane``). Tuning seeds 101-102, T-72:
-            median T_error at 50 m 0.08-0.15 -> 0.06-0.10 m, at 100 m mixed, F1 0.939 / 0.922 ->
-            0.939 / 0.910, time per scene +14-33 % (normals at each call): off (docs/recognition.md,
-            "Point-to-plane ICP").
+        icp_point_to_plane: verification's ICP minimises distances to the scene's local planes (its
+            own normals) rather than to its points (``steps.VerifySettings.point_to_plane``). Tuning
+            seeds 101-102, T-72: median T_error at 50 m 0.08-0.15 -> 0.07-0.13 m, at 100 m mixed,
+            pooled F1 0.931 either way, time per scene +2 %; but at 100 m and 0 deg, where the
+            cloud's normals are poorest, it loses targets (seed 101, every scene: F1 0.712 -> 0.634),
+            so it is off (docs/recognition.md, "Point-to-plane ICP").
 
     """
 

@@ -40,7 +40,6 @@ class Scene:
         height: (S,) height of each surface vertex above the ground, metres; None without the prior.
         band: (S,) bool, vertices within the height band a target occupies; None without the prior.
         terrain: cell centres and lowest z of the subsampled scene (``lowest_per_cell``), or None.
-        normals: (S, 3) unit normals of the surface.
         kp_idx: (K,) indices of the keypoints into the surface.
         ground: (G, 3) the subsampled vertices taken for the ground (not described); None without the
             prior.
@@ -52,9 +51,13 @@ class Scene:
     height: np.ndarray | None = None
     band: np.ndarray | None = None
     terrain: tuple[np.ndarray, np.ndarray] | None = None
-    normals: np.ndarray | None = None
     kp_idx: np.ndarray | None = None
     ground: np.ndarray | None = None
+
+    @property
+    def normals(self) -> np.ndarray | None:
+        """(S, 3) unit normals of the surface (``estimate_normals``), or None before."""
+        return self.surface.normals
 
     @property
     def keypoints(self) -> np.ndarray:
@@ -183,7 +186,7 @@ def attention_sizes(templates: Sequence[Template], config: RecognitionConfig) ->
 
 def estimate_normals(scene: Scene, config: RecognitionConfig) -> None:
     """Normals of the surface: a plane fit on ``normal_k`` neighbours, facing the camera (§II-B-2)."""
-    scene.normals = _backend.estimate_normals(
+    scene.surface.normals = _backend.estimate_normals(
         scene.surface.points_m, config.template.normal_k, scene.viewpoint_m
     )
 

@@ -621,9 +621,10 @@ class VerifySettings:
             than the ICP itself. ICP can only pair vertices within the gate of the moving model, so the
             result is the same as on the whole scene as long as the model's centre moves less than this;
             a hypothesis whose refined centre moved further is refined again on the whole scene.
-        point_to_plane: ICP minimises the distances to the scene's local planes (normals from its
-            neighbours within ``icp_gate_m``) instead of to its points: two surfaces sampled apart do
-            not hold each other at the sampling's offsets.
+        point_to_plane: ICP minimises the distances to the scene's local planes instead of to its
+            points: two surfaces sampled apart do not hold each other at the sampling's offsets. The
+            planes are the scene's own normals (``PointSet.normals``) when it has them, else estimated
+            from neighbours within ``icp_gate_m`` at each call.
 
     """
 
@@ -638,16 +639,18 @@ class VerifySettings:
 
 @dataclass
 class PointSet:
-    """Points with their kd-tree (built on first use, then reused) and optional per-point sigma.
+    """Points with their kd-tree (built on first use, then reused), optional per-point sigma and normals.
 
     Attributes:
         points_m: (N, 3) float64, metres.
         sigma_m: optional (N,) 1-sigma position uncertainty of each point, metres (SfM gives it).
+        normals: optional (N, 3) unit normals of the surface the points sample.
 
     """
 
     points_m: np.ndarray
     sigma_m: np.ndarray | None = None
+    normals: np.ndarray | None = None
     _tree: cKDTree | None = None
 
     @property
@@ -757,12 +760,18 @@ def _refine_with_icp(
     icp_gate_m, icp_reach_m = settings.icp_gate_m, settings.icp_reach_m
     src = _open3d_cloud(model_points)
 
-    def icp(target: o3d.geometry.PointCloud) -> np.ndarray:
+    def icp(index: np.ndarray | None) -> np.ndarray:
+        """ICP onto the scene's vertices ``index`` (None: all of them)."""
+        target = _open3d_cloud(scene_points if index is None else scene_points[index])
         estimation = o3d.pipelines.registration.TransformationEstimationPointToPoint()
         if settings.point_to_plane:
-            target.estimate_normals(
-                o3d.geometry.KDTreeSearchParamHybrid(radius=float(icp_gate_m), max_nn=16)
-            )
+            if scene.normals is None:
+                target.estimate_normals(
+                    o3d.geometry.KDTreeSearchParamHybrid(radius=float(icp_gate_m), max_nn=16)
+                )
+            else:
+                normals = scene.normals if index is None else scene.normals[index]
+                target.normals = o3d.utility.Vector3dVector(np.asarray(normals, np.float64))
             estimation = o3d.pipelines.registration.TransformationEstimationPointToPlane()
         result = o3d.pipelines.registration.registration_icp(
             src,
@@ -783,11 +792,11 @@ def _refine_with_icp(
         placed_centre = T_initial[:3, :3] @ model_centre + T_initial[:3, 3]
         near = scene_tree.query_ball_point(placed_centre, model_radius + icp_gate_m + icp_reach_m)
         # nothing within reach: ICP would find no pair on the whole scene either
-        T = T_initial.copy() if not near else icp(_open3d_cloud(scene_points[np.sort(near)]))
+        T = T_initial.copy() if not near else icp(np.sort(near))
         if np.linalg.norm(T[:3, :3] @ model_centre + T[:3, 3] - placed_centre) > icp_reach_m:
             T = None
     if T is None:
-        T = icp(_open3d_cloud(scene_points))
+        T = icp(None)
     return T
 
 

@@ -483,6 +483,44 @@ def test_verify_refines_again_on_the_whole_scene_a_hypothesis_that_moves_beyond_
     assert np.array_equal(near.T_scene_model, whole.T_scene_model)
 
 
+def test_point_to_plane_verify_uses_the_scenes_own_normals():
+    # a flat patch with the hypothesis off along x and z: to the plane z = 0 ICP can only take out the
+    # z offset (sliding along the plane costs nothing); given normals along x, only the x offset
+    g = np.arange(0.0, 2.0001, 0.1)
+    patch = np.stack(np.meshgrid(g, g, [0.0]), -1).reshape(-1, 3)
+    T = np.eye(4)
+    T[:3, 3] = [0.04, 0.0, 0.2]
+    settings = VerifySettings(0.6, 0.3, 30, point_to_plane=True)
+    for normal, fixed, kept in (([0, 0, 1], 2, 0), ([1, 0, 0], 0, 2)):
+        scene = PointSet(patch, normals=np.tile(np.float64(normal), (len(patch), 1)))
+        t = verify_with_icp(PointSet(patch), scene, T, settings).T_scene_model[:3, 3]
+        assert abs(t[fixed]) < 1e-6, (normal, t)
+        assert abs(t[kept] - T[kept, 3]) < 0.01, (normal, t)
+
+
+def test_point_to_plane_verify_on_the_neighbourhood_equals_verify_on_the_whole_scene():
+    # the neighbourhood's normals are the rows of the scene's own normals that it keeps
+    model = _box_surface(0.3)
+    rng = np.random.default_rng(5)
+    target = model + np.array([20.0, 10.0, 0.0]) + rng.normal(0.0, 0.03, model.shape)
+    ground = np.stack(np.meshgrid(np.arange(-20, 60, 0.3), np.arange(-30, 50, 0.3), [0.0]), -1)
+    points = np.concatenate([ground.reshape(-1, 3), target])
+    normals = estimate_normals(points, 10, None)
+    T = np.eye(4)
+    T[:3, 3] = [20.3, 9.8, 0.1]
+    fits = [
+        verify_with_icp(
+            PointSet(model),
+            PointSet(points, normals=normals),
+            T,
+            VerifySettings(0.6, 0.3, 30, icp_reach_m=reach_m, point_to_plane=True),
+        )
+        for reach_m in (None, 3.0)
+    ]
+    assert np.linalg.norm(fits[0].T_scene_model[:3, 3] - [20.0, 10.0, 0.0]) < 0.1
+    assert np.allclose(fits[1].T_scene_model, fits[0].T_scene_model, atol=1e-9)
+
+
 def test_verify_does_not_count_a_points_own_noise_as_clutter():
     model = _box_surface(0.3)
     rng = np.random.default_rng(0)
