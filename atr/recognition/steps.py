@@ -625,6 +625,9 @@ class VerifySettings:
             points: two surfaces sampled apart do not hold each other at the sampling's offsets. The
             planes are the scene's own normals (``PointSet.normals``) when it has them, else estimated
             from neighbours within ``icp_gate_m`` at each call.
+        plane_max_sigma_m: with ``point_to_plane``, a scene with per-point sigma is fitted to its
+            planes only where the median sigma of the vertices ICP fits is at most this, and to its
+            points elsewhere (None: planes everywhere).
 
     """
 
@@ -635,6 +638,7 @@ class VerifySettings:
     k_clutter_sigma: float = 0.0
     icp_reach_m: float | None = None
     point_to_plane: bool = False
+    plane_max_sigma_m: float | None = None
 
 
 @dataclass
@@ -764,7 +768,7 @@ def _refine_with_icp(
         """ICP onto the scene's vertices ``index`` (None: all of them)."""
         target = _open3d_cloud(scene_points if index is None else scene_points[index])
         estimation = o3d.pipelines.registration.TransformationEstimationPointToPoint()
-        if settings.point_to_plane:
+        if _to_planes(scene, index, settings):
             if scene.normals is None:
                 target.estimate_normals(
                     o3d.geometry.KDTreeSearchParamHybrid(radius=float(icp_gate_m), max_nn=16)
@@ -798,6 +802,16 @@ def _refine_with_icp(
     if T is None:
         T = icp(None)
     return T
+
+
+def _to_planes(scene: PointSet, index: np.ndarray | None, settings: VerifySettings) -> bool:
+    """Whether ICP onto the scene's vertices ``index`` (None: all) fits to their planes."""
+    if not settings.point_to_plane:
+        return False
+    if settings.plane_max_sigma_m is None or scene.sigma_m is None:
+        return True
+    sigma = scene.sigma_m if index is None else scene.sigma_m[index]
+    return bool(len(sigma)) and float(np.median(sigma)) <= settings.plane_max_sigma_m
 
 
 def _open3d_cloud(points_m: np.ndarray) -> o3d.geometry.PointCloud:

@@ -498,6 +498,28 @@ def test_point_to_plane_verify_uses_the_scenes_own_normals():
         assert abs(t[kept] - T[kept, 3]) < 0.01, (normal, t)
 
 
+def test_point_to_plane_verify_fits_a_noisy_scene_to_its_points():
+    # planes where the scene's median sigma is within the gate, points where it is above
+    g = np.arange(0.0, 2.0001, 0.1)
+    patch = np.stack(np.meshgrid(g, g, [0.0]), -1).reshape(-1, 3)
+    normals = np.tile(
+        np.float64([1, 0, 0]), (len(patch), 1)
+    )  # wrong on purpose: only planes use them
+    T = np.eye(4)
+    T[:3, 3] = [0.04, 0.0, 0.2]
+
+    def fit(sigma_m: float, **kw) -> np.ndarray:
+        scene = PointSet(patch, np.full(len(patch), sigma_m), normals)
+        return verify_with_icp(PointSet(patch), scene, T, VerifySettings(0.6, 0.3, 30, **kw))
+
+    gate = {"point_to_plane": True, "plane_max_sigma_m": 0.3}
+    to_points = fit(0.1).T_scene_model
+    assert np.allclose(fit(0.5, **gate).T_scene_model, to_points)
+    to_planes = fit(0.1, **gate).T_scene_model
+    assert abs(to_planes[0, 3]) < 1e-6 and abs(to_planes[2, 3] - 0.2) < 0.01, to_planes[:3, 3]
+    assert not np.allclose(to_planes, to_points)
+
+
 def test_point_to_plane_verify_on_the_neighbourhood_equals_verify_on_the_whole_scene():
     # the neighbourhood's normals are the rows of the scene's own normals that it keeps
     model = _box_surface(0.3)
