@@ -190,8 +190,10 @@ class MatcherConfig:
             own normals) rather than to its points (``steps.VerifySettings.point_to_plane``). Tuning
             seeds 101-102, T-72: median T_error at 50 m 0.08-0.15 -> 0.07-0.13 m, at 100 m mixed,
             pooled F1 0.931 either way, time per scene +2 %; but at 100 m and 0 deg, where the
-            cloud's normals are poorest, it loses targets (seed 101, every scene: F1 0.712 -> 0.634),
-            so it is off (docs/recognition.md, "Point-to-plane ICP").
+            cloud's normals are poorest, it loses targets (seed 101, every scene: F1 0.712 -> 0.634)
+            unless ``k_plane_sigma`` keeps it to sharp clouds: then pooled F1 0.944 on the tuning
+            seeds and 0.727 there. Off: the committed tables were made without it (docs/
+            recognition.md, "Point-to-plane ICP").
         k_plane_sigma: with ``icp_point_to_plane``, ICP fits to the planes only where the median
             sigma of the scene vertices it fits is at most this / resolution, and to the points
             elsewhere: the normals of a noisier cloud let the fit slide along the vehicle. Tuning
