@@ -439,13 +439,18 @@ def test_verify_overlap_follows_a_sparse_scene_spacing_but_not_a_dense_one():
     assert v_pole.clutter > v.clutter
 
 
-def test_verify_on_the_hypothesis_neighbourhood_equals_verify_on_the_whole_scene():
+def _box_on_wide_ground(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """A 0.3 m box surface and a scene of it, noisy, at (20, 10, 0) on a wide ground it touches."""
     model = _box_surface(0.3)
-    rng = np.random.default_rng(3)
-    # the box half a metre off its hypothesis, on a wide ground it touches
+    rng = np.random.default_rng(seed)
     target = model + np.array([20.0, 10.0, 0.0]) + rng.normal(0.0, 0.03, model.shape)
     ground = np.stack(np.meshgrid(np.arange(-20, 60, 0.3), np.arange(-30, 50, 0.3), [0.0]), -1)
-    scene = np.concatenate([ground.reshape(-1, 3), target])
+    return model, np.concatenate([ground.reshape(-1, 3), target])
+
+
+def test_verify_on_the_hypothesis_neighbourhood_equals_verify_on_the_whole_scene():
+    # the box half a metre off its hypothesis
+    model, scene = _box_on_wide_ground(3)
     T = np.eye(4)
     T[:3, 3] = [20.4, 9.7, 0.1]
     whole = _verify(model, scene, T, 0.6, 0.3, 30)
@@ -522,11 +527,7 @@ def test_point_to_plane_verify_fits_a_noisy_scene_to_its_points():
 
 def test_point_to_plane_verify_on_the_neighbourhood_equals_verify_on_the_whole_scene():
     # the neighbourhood's normals are the rows of the scene's own normals that it keeps
-    model = _box_surface(0.3)
-    rng = np.random.default_rng(5)
-    target = model + np.array([20.0, 10.0, 0.0]) + rng.normal(0.0, 0.03, model.shape)
-    ground = np.stack(np.meshgrid(np.arange(-20, 60, 0.3), np.arange(-30, 50, 0.3), [0.0]), -1)
-    points = np.concatenate([ground.reshape(-1, 3), target])
+    model, points = _box_on_wide_ground(5)
     normals = estimate_normals(points, 10, None)
     T = np.eye(4)
     T[:3, 3] = [20.3, 9.8, 0.1]
