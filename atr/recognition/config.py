@@ -197,7 +197,8 @@ class MatcherConfig:
         k_plane_sigma: with ``icp_point_to_plane``, ICP fits to the planes only where the median
             sigma of the scene vertices it fits is at most this / resolution, and to the points
             elsewhere: the normals of a noisier cloud let the fit slide along the vehicle. Tuning
-            seed 101: median sigma near the target 0.23 m at 50 m, 0.45-0.48 m at 100 m.
+            seed 101: median sigma on the target 0.23-0.24 m at 50 m, 0.45-0.47 m at 100 m
+            (``bench/scene_sigma.py``).
 
     """
 
