@@ -5,7 +5,7 @@ the defaults and once with `--set tracking.FIELD=VALUE` overrides; prints pooled
 confirmed tracks per scene, track F1 and false confirmed tracks; with `--per-run`, each run's track F1,
 scenes to first confirmation, false confirmed tracks and fused position error (the tracks issue's goals
 are per run) beside the per-scene detections' median error and their mean offset in the target's frame
-(along and across its heading): an offset shared by a whole orbit is what fusing cannot remove.
+(along and across its heading, and up): an offset shared by a whole orbit is what fusing cannot remove.
 Prints figures; asserts nothing. Example (the class votes of docs/tracking.md):
 
     python bench/track_rescore.py --results results --set tracking.class_votes=true [--per-run]
@@ -79,7 +79,7 @@ def main() -> None:
 
 def _scene_errors(records: Sequence, target: str, present: float) -> str:
     """Per scene: the best detection of the target within the 2 m bound, its error; the median, and
-    the mean offset along and across the detected heading."""
+    the mean offset along and across the detected heading, and up."""
     errors, offsets = [], []
     for record in records:
         truth = [
@@ -97,14 +97,15 @@ def _scene_errors(records: Sequence, target: str, present: float) -> str:
             (
                 math.cos(yaw) * e[0] + math.sin(yaw) * e[1],
                 -math.sin(yaw) * e[0] + math.cos(yaw) * e[1],
+                e[2],
             )
         )
     if not errors:
         return "no per-scene TP"
-    along, across = np.mean(offsets, axis=0)
+    along, across, up = np.mean(offsets, axis=0)
     return (
         f"per scene median {np.median(errors):.2f} m, mean offset along {along:+.2f} / "
-        f"across {across:+.2f} m"
+        f"across {across:+.2f} / up {up:+.2f} m"
     )
 
 

@@ -2,9 +2,11 @@
 
 A flight of 200 scenes: one target seen with 0.4 m noise in 80 % of them, and `--clutter` false positives
 per scene scattered over 200 m (every one starts a tentative track). The time is the median over the
-scenes of the median over `--repeats` replays of the whole flight.
+scenes of the median over `--repeats` replays of the whole flight. With `--set tracking.FIELD=VALUE`,
+the same flight also runs with those settings, interleaved with the defaults in this process, and the
+ratio of the two is printed.
 
-Run: ./dev bench tracker [--clutter 3] [--repeats 7]
+Run: ./dev bench tracker [--clutter 3] [--repeats 7] [--set tracking.fuse_median=false]
 """
 
 from __future__ import annotations
@@ -14,7 +16,8 @@ import time
 
 import numpy as np
 
-from atr.tracking import Tracker, TrackInput
+from atr.config import load_config
+from atr.tracking import Tracker, TrackingConfig, TrackInput
 
 SCENES = 200
 STEP_NS = 500_000_000
@@ -39,21 +42,33 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--clutter", type=int, default=3)
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--set", dest="overrides", action="append", default=[])
     args = parser.parse_args()
     scenes = flight(args.clutter)
-    times_ms = np.zeros((args.repeats, SCENES))
+    configs = {"defaults": TrackingConfig()}
+    if args.overrides:
+        configs[" ".join(args.overrides)] = load_config(None, args.overrides).tracking
+    times_ms = {label: np.zeros((args.repeats, SCENES)) for label in configs}
+    live = {}
     for r in range(args.repeats):
-        tracker = Tracker()
-        for k, ds in enumerate(scenes):
-            t0 = time.perf_counter()
-            tracks = tracker.update(ds, 1_000_000_000 + k * STEP_NS)
-            times_ms[r, k] = 1e3 * (time.perf_counter() - t0)
-    per_scene = np.median(times_ms, axis=0)
-    print(
-        f"tracker: {args.clutter} clutter detections/scene, {len(tracks)} live tracks at the end: "
-        f"median {np.median(per_scene):.3f} ms/scene, p95 {np.percentile(per_scene, 95):.3f} ms "
-        f"({args.repeats} runs of {SCENES} scenes)"
-    )
+        for label, config in configs.items():  # interleaved: both see the same machine load
+            tracker = Tracker(config)
+            for k, ds in enumerate(scenes):
+                t0 = time.perf_counter()
+                tracks = tracker.update(ds, 1_000_000_000 + k * STEP_NS)
+                times_ms[label][r, k] = 1e3 * (time.perf_counter() - t0)
+            live[label] = len(tracks)
+    medians = {}
+    for label, t in times_ms.items():
+        per_scene = np.median(t, axis=0)
+        medians[label] = float(np.median(per_scene))
+        print(
+            f"tracker ({label}): {args.clutter} clutter detections/scene, {live[label]} live tracks at "
+            f"the end: median {medians[label]:.3f} ms/scene, p95 {np.percentile(per_scene, 95):.3f} ms "
+            f"({args.repeats} runs of {SCENES} scenes)"
+        )
+    for label in list(configs)[1:]:
+        print(f"{label} / defaults: {medians[label] / medians['defaults']:.2f} x")
 
 
 if __name__ == "__main__":
