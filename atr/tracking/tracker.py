@@ -92,7 +92,7 @@ class Track:
     hits: int = 1
     last_seen_ns: int = 0
     supporting_stamps_ns: list[int] = field(default_factory=list)
-    places_m: list[np.ndarray] = field(default_factory=list)
+    places_m: list[np.ndarray] = field(default_factory=list, repr=False)
     class_evidence: dict[str, float] = field(default_factory=dict)
     class_hits: dict[str, int] = field(default_factory=dict)
     _window: list[bool] = field(default_factory=list, repr=False)
