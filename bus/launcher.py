@@ -14,9 +14,11 @@ from __future__ import annotations
 import logging
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -194,6 +196,11 @@ class Supervisor:
         self._lock = threading.Lock()
         self._stopping = False
         self._once: list[subprocess.Popen[bytes]] = []
+        # One state folder per launcher, made and removed by it, unless the caller chose one: a restarted
+        # service finds its journal there, and a stopped layout leaves nothing in the temp directory.
+        self._own_state_dir: Path | None = None
+        if not os.environ.get("ATR_STATE_DIR"):
+            self._own_state_dir = Path(tempfile.mkdtemp(prefix="atr-state-"))
 
     def _command(self, spec: ProcessSpec) -> list[str]:
         command = [sys.executable, "-m", "cli.main", "service", spec.service, *spec.args]
@@ -219,6 +226,8 @@ class Supervisor:
             env["ATR_ZENOH_CONFIG"] = (
                 str(REPO / config) if not Path(config).is_absolute() else config
             )
+        if self._own_state_dir is not None:
+            env["ATR_STATE_DIR"] = str(self._own_state_dir)
         hub = self.layout.variables.get("hub")
         if hub and spec.role != "hub":
             env.setdefault("ATR_ZENOH_CONNECT", hub)
@@ -325,6 +334,8 @@ class Supervisor:
                 codes[proc.spec.name] = proc.popen.returncode
         for handle in self._logs:
             handle.close()
+        if self._own_state_dir is not None:
+            shutil.rmtree(self._own_state_dir, ignore_errors=True)
         return codes
 
 

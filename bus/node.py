@@ -97,9 +97,9 @@ class Counters:
 
 
 def default_state_dir() -> Path:
-    """Where services keep checkpoints unless told: ATR_STATE_DIR, else a folder of the system's temp
-    directory named after the parent process (the launcher that restarts them), so the layouts that run
-    at the same time never share one.
+    """Where services keep checkpoints unless told: ATR_STATE_DIR (the launcher sets it to a folder it
+    makes per layout and removes at its stop), else, for a service started by hand, a folder of the
+    system's temp directory named after its parent process.
     """
     configured = os.environ.get("ATR_STATE_DIR")
     if configured:

@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -84,6 +85,34 @@ def test_exit_0_is_done_and_a_failure_is_restarted(tmp_path: Path) -> None:
     assert finished.done and finished.restarts == 0 and finished.failures == []
     assert failing.restarts >= 2 and set(failing.failures) == {2}
     assert supervisor.failures() == {"failing": failing.failures}
+
+
+def test_the_launcher_gives_its_processes_one_state_folder_and_removes_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "lifecycle.yml"
+    path.write_text(_LAYOUT)
+    monkeypatch.delenv("ATR_STATE_DIR", raising=False)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    supervisor = Supervisor(load_layout(path))
+    specs = supervisor.specs
+    folders = {supervisor._env(spec)["ATR_STATE_DIR"] for spec in specs}
+    assert len(folders) == 1 and len(specs) == 2
+    folder = Path(folders.pop())
+    assert folder.is_dir() and folder.parent == tmp_path
+    (folder / "sfm-uav1.state").write_bytes(b"a journal left by a killed service")
+    supervisor.start()
+    supervisor.stop(grace_s=2.0)
+    assert not folder.exists()
+    # a folder the caller chose is the caller's: given to the processes, never removed
+    chosen = tmp_path / "chosen"
+    chosen.mkdir()
+    monkeypatch.setenv("ATR_STATE_DIR", str(chosen))
+    supervisor = Supervisor(load_layout(path))
+    assert supervisor._env(specs[0])["ATR_STATE_DIR"] == str(chosen)
+    supervisor.start()
+    supervisor.stop(grace_s=2.0)
+    assert chosen.is_dir()
 
 
 def test_user_path_variables_are_resolved_against_the_callers_folder(tmp_path: Path) -> None:
