@@ -461,6 +461,7 @@ class _Search:
             icp_reach_m=c.icp_reach_m,
             point_to_plane=m.icp_point_to_plane,
             plane_max_sigma_m=c.plane_max_sigma_m,
+            plane_min_spread=m.plane_min_normal_spread,
         )
         model_all = np.asarray(tpl.points_m, np.float64)
         model = steps.PointSet(model_all)  # the whole model: what explains the scene at a place

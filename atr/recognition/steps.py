@@ -628,6 +628,11 @@ class VerifySettings:
         plane_max_sigma_m: with ``point_to_plane``, a scene with per-point sigma is fitted to its
             planes only where the median sigma of the vertices ICP fits is at most this, and to its
             points elsewhere (None: planes everywhere).
+        plane_min_spread: with ``point_to_plane``, the planes are fitted only where the normals of the
+            vertices ICP fits spread over all three directions: the smallest eigenvalue of their mean
+            outer product (1/3 for normals spread evenly, 0 for one plane or two) at least this; else
+            the points. Planes that all share a direction (flat ground, one wall, a dihedral) leave
+            the pose free along it, and Open3D's solve then returns different poses from run to run.
 
     """
 
@@ -639,6 +644,7 @@ class VerifySettings:
     icp_reach_m: float | None = None
     point_to_plane: bool = False
     plane_max_sigma_m: float | None = None
+    plane_min_spread: float = 0.0
 
 
 @dataclass
@@ -776,7 +782,8 @@ def _refine_with_icp(
             else:
                 normals = scene.normals if index is None else scene.normals[index]
                 target.normals = o3d.utility.Vector3dVector(np.asarray(normals, np.float64))
-            estimation = o3d.pipelines.registration.TransformationEstimationPointToPlane()
+            if normal_spread(np.asarray(target.normals)) >= settings.plane_min_spread:
+                estimation = o3d.pipelines.registration.TransformationEstimationPointToPlane()
         result = o3d.pipelines.registration.registration_icp(
             src,
             target,
@@ -802,6 +809,17 @@ def _refine_with_icp(
     if T is None:
         T = icp(None)
     return T
+
+
+def normal_spread(normals: np.ndarray) -> float:
+    """Smallest eigenvalue of the mean outer product of unit normals (N, 3): how much of their
+    direction the least-covered axis gets; 1/3 for normals spread evenly, 0 when they all lie in one
+    plane (one or two families of parallel planes leave a translation unconstrained). 0 for none.
+    """
+    n = np.asarray(normals, np.float64)
+    if len(n) == 0:
+        return 0.0
+    return float(np.linalg.eigvalsh(n.T @ n / len(n))[0])
 
 
 def _to_planes(scene: PointSet, index: np.ndarray | None, settings: VerifySettings) -> bool:

@@ -25,6 +25,7 @@ from atr.recognition import (
     knndr_from_distances,
     lowest_per_cell,
     match_knndr,
+    normal_spread,
     ransac_per_group,
     rigid_transform,
     terrain_height_at,
@@ -538,6 +539,39 @@ def test_point_to_plane_verify_fits_a_noisy_scene_to_its_points():
     to_planes = fit(0.1, **gate).T_scene_model
     assert np.linalg.norm(to_planes[:3, 3]) < 0.01, to_planes[:3, 3]
     assert np.linalg.norm(to_points[:3, 3]) > 0.04, to_points[:3, 3]
+
+
+def test_normal_spread_is_a_third_for_a_corner_and_zero_for_one_or_two_planes():
+    axes = np.eye(3)
+    assert abs(normal_spread(np.repeat(axes, 50, axis=0)) - 1 / 3) < 1e-12
+    assert normal_spread(np.repeat(axes[[2]], 50, axis=0)) < 1e-12  # flat ground
+    assert normal_spread(np.repeat(axes[[0, 2]], 50, axis=0)) < 1e-12  # a wall on the ground
+    assert normal_spread(np.zeros((0, 3))) == 0.0
+    # a roof over a box: the sides' few normals are what holds the fit along the ground
+    box = np.vstack([np.repeat(axes[[2]], 90, axis=0), np.repeat(axes[[0, 1]], 5, axis=0)])
+    assert abs(normal_spread(box) - 0.05) < 1e-12
+
+
+def test_point_to_plane_verify_fits_one_plane_to_its_points():
+    # one plane leaves the fit free along it, where Open3D's solve has no unique answer: the points
+    # decide there, every time the same, and the corner (three planes) is still fitted to its planes
+    g = np.arange(0.0, 2.0001, 0.1)
+    flat = np.stack(np.meshgrid(g, g, [0.0]), -1).reshape(-1, 3)
+    up = np.tile(np.float64([0, 0, 1]), (len(flat), 1))
+    T = np.eye(4)
+    T[:3, 3] = [0.04, 0.03, 0.2]
+    planes = VerifySettings(0.6, 0.3, 30, point_to_plane=True, plane_min_spread=0.01)
+    fits = [
+        verify_with_icp(PointSet(flat), PointSet(flat, normals=up), T, planes) for _ in range(5)
+    ]
+    to_points = verify_with_icp(PointSet(flat), PointSet(flat), T, VerifySettings(0.6, 0.3, 30))
+    for fit in fits:
+        assert np.array_equal(fit.T_scene_model, to_points.T_scene_model)
+    scene, model = _corner(g), _corner(g[:-1] + 0.05)
+    normals = np.repeat(np.eye(3)[[2, 0, 1]], len(scene) // 3, axis=0)
+    T[:3, 3] = [0.03, 0.02, 0.04]
+    corner = verify_with_icp(PointSet(model), PointSet(scene, normals=normals), T, planes)
+    assert np.linalg.norm(corner.T_scene_model[:3, 3]) < 0.01, corner.T_scene_model[:3, 3]
 
 
 def test_point_to_plane_verify_on_the_neighbourhood_equals_verify_on_the_whole_scene():
