@@ -495,18 +495,22 @@ def _corner(g: np.ndarray) -> np.ndarray:
     return np.vstack([floor, floor[:, [2, 0, 1]], floor[:, [0, 2, 1]]])
 
 
-def test_point_to_plane_verify_uses_the_scenes_own_normals():
-    # a corner of three planes, the model sampled half a cell off the scene's samples: fitted to the
-    # points ICP snaps the model's samples onto the scene's (a third of a cell off along each axis);
-    # fitted to the planes through the normals the scene carries it lands on the surfaces. (A scene
-    # whose normals leave the fit without one answer, a flat patch, gives Open3D's solve no unique
-    # pose from run to run, so none is used here.)
-
+def _corner_fit_case() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A corner scene with its normals, the model sampled half a cell off it, a start pose 5 cm off."""
     g = np.arange(0.0, 2.0001, 0.1)
     scene, model = _corner(g), _corner(g[:-1] + 0.05)
     normals = np.repeat(np.eye(3)[[2, 0, 1]], len(scene) // 3, axis=0)
     T = np.eye(4)
     T[:3, 3] = [0.03, 0.02, 0.04]
+    return scene, normals, model, T
+
+
+def test_point_to_plane_verify_uses_the_scenes_own_normals():
+    # a corner of three planes, the model sampled half a cell off the scene's samples: fitted to the
+    # points ICP snaps the model's samples onto the scene's (a third of a cell off along each axis);
+    # fitted to the planes through the normals the scene carries it lands on the surfaces. (A flat
+    # patch would leave Open3D's solve without one answer: see the guard's test below.)
+    scene, normals, model, T = _corner_fit_case()
     to_planes = verify_with_icp(
         PointSet(model),
         PointSet(scene, normals=normals),
@@ -523,11 +527,7 @@ def test_point_to_plane_verify_uses_the_scenes_own_normals():
 def test_point_to_plane_verify_fits_a_noisy_scene_to_its_points():
     # planes where the scene's median sigma is within the gate, points where it is above; on the
     # corner of the test above, where both fits have one answer and they differ by centimetres
-    g = np.arange(0.0, 2.0001, 0.1)
-    scene, model = _corner(g), _corner(g[:-1] + 0.05)
-    normals = np.repeat(np.eye(3)[[2, 0, 1]], len(scene) // 3, axis=0)
-    T = np.eye(4)
-    T[:3, 3] = [0.03, 0.02, 0.04]
+    scene, normals, model, T = _corner_fit_case()
 
     def fit(sigma_m: float, **kw) -> np.ndarray:
         noisy = PointSet(scene, np.full(len(scene), sigma_m), normals)
@@ -567,9 +567,7 @@ def test_point_to_plane_verify_fits_one_plane_to_its_points():
     to_points = verify_with_icp(PointSet(flat), PointSet(flat), T, VerifySettings(0.6, 0.3, 30))
     for fit in fits:
         assert np.array_equal(fit.T_scene_model, to_points.T_scene_model)
-    scene, model = _corner(g), _corner(g[:-1] + 0.05)
-    normals = np.repeat(np.eye(3)[[2, 0, 1]], len(scene) // 3, axis=0)
-    T[:3, 3] = [0.03, 0.02, 0.04]
+    scene, normals, model, T = _corner_fit_case()
     corner = verify_with_icp(PointSet(model), PointSet(scene, normals=normals), T, planes)
     assert np.linalg.norm(corner.T_scene_model[:3, 3]) < 0.01, corner.T_scene_model[:3, 3]
 
