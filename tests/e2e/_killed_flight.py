@@ -1,8 +1,8 @@
 """A short simulated flight through the `local` layout under a real supervisor, with kill -9 of its services.
 
 The layout's processes run as `atr up` runs them (bus.launcher.Supervisor, restarted when they die); the
-sensor source flies in lock-step with the small camera. An observer session on the hub notes what every
-frame got: Detections, or an ErrorReport naming its stamp.
+sensor source flies in lock-step with the small camera. An observer session on the hub (with the bus's own
+recovering subscribers) notes what every frame got: Detections, or an ErrorReport naming its stamp.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import zenoh
 
-from bus import codec, keys
+from bus import codec, keys, reliable
 from bus.launcher import Supervisor, load_layout, observer_session, wait_until_ready
 from bus.pipeline import free_hub_endpoint
 
@@ -94,10 +94,12 @@ def fly(
         supervisor.start()
         session = observer_session(layout)
         subscribers = [
-            session.declare_subscriber(keys.imu(UAV), on_imu),
-            session.declare_subscriber(keys.detections(UAV), on_detections),
-            session.declare_subscriber(f"atr/{UAV}/*/errors", on_error),
-            session.declare_subscriber(keys.sfm_cloud(UAV), on_cloud),
+            # as every subscriber of the bus: a restarted process's first messages (the report of the
+            # input a killed one had in hand) may leave before the routes to a plain subscriber exist
+            reliable.Subscriber(session, keys.imu(UAV), on_imu),
+            reliable.Subscriber(session, keys.detections(UAV), on_detections),
+            reliable.Subscriber(session, f"atr/{UAV}/*/errors", on_error),
+            reliable.Subscriber(session, keys.sfm_cloud(UAV), on_cloud),
         ]
         try:
             services = [p.name for p in supervisor.specs if p.role != "hub"]
