@@ -277,6 +277,12 @@ class GroundConfig:
             percentile of the lowest points and stands 0.1-0.3 m below the ground at 100 m; ICP leaves the
             vehicle 0.1-0.3 m low too (docs/recognition.md, "Placing the vehicle on the ground").
         min_place_points: fewer ground points than this within the radius leave the ICP height as it is.
+        k_place_band: from that median the height moves to the median of every scene vertex within
+            this / resolution of it (0.3 m), repeated until it settles: the ground points are cut at
+            a low percentile plus the ground cut, so in a noisy cloud they miss the ground's upper
+            tail and their median stands 0.06-0.14 m low at 100 m; a band symmetric about the
+            estimate does not (docs/recognition.md, "Placing the vehicle on the ground"). 0: the
+            ground points' median.
         attention: take keypoints only where a vehicle can stand (``atr.recognition.attention``): in
             blobs of the height band, on columns no taller than the tallest template, whose footprint
             is vehicle-sized. Off: on the tuning seed it drops a quarter of the keypoints but only ~3 %
@@ -297,6 +303,7 @@ class GroundConfig:
     k_terrain_step: float = 5.0
     k_place_radius: float = 27.0
     min_place_points: int = 20
+    k_place_band: float = bounded(1.0, ge=0)
     attention: bool = False
     k_attention_cell: float = 2.0
     k_attention_footprint: float = 1.5
@@ -445,4 +452,7 @@ class RecognitionConfig:
     nms_m = _Metres("k_nms", "Distance under which two hypotheses are one location")
     place_radius_m = _Metres(
         "k_place_radius", "Radius of the ground around a hypothesis that its height is set from"
+    )
+    place_band_m = _Metres(
+        "k_place_band", "Half-width of the band about the ground height that a placement settles in"
     )

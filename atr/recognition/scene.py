@@ -268,6 +268,10 @@ def heading_window(
     return YawWindow(centre, half)
 
 
+_PLACE_ITERATIONS = 10  # at most; the band's median settles within a few
+_PLACE_SETTLED = 0.01  # of the band: a step smaller than this ends the iteration
+
+
 class GroundCheck:
     """Where a ground vehicle may stand: on the scene's ground, and that ground not a roof."""
 
@@ -281,21 +285,42 @@ class GroundCheck:
             surface = scene.surface.points_m
             self.ground_xy = cKDTree(surface[:, :2])
             self.ground_z = surface[:, 2] - scene.height
+            self.surface_z = surface[:, 2]
             if scene.ground is not None and len(scene.ground):
                 self.ground_points = cKDTree(scene.ground[:, :2])
                 self.ground_points_z = scene.ground[:, 2]
 
     def placed(self, T_scene_model: np.ndarray) -> np.ndarray:
-        """The pose with its height set to the median height of the ground around it (a ground
-        vehicle's origin lies on the ground under it); unchanged without enough ground in reach.
+        """The pose with its height set to the height of the ground around it (a ground vehicle's
+        origin lies on the ground under it); unchanged without enough ground in reach.
+
+        The ground points are the vertices less than ``ground_cut_m`` above a low percentile of the
+        lowest points: in a noisy cloud that cut keeps the ground's lower half and drops its upper
+        tail, so their median stands low. From that median the height moves to the median of every
+        vertex within ``place_band_m`` of it, ground or not, until it settles: a band symmetric
+        about the estimate has no such cut, and most of a vehicle's body stands higher, out of it.
         """
         if self.ground_points is None:
             return T_scene_model
-        near = self.ground_points.query_ball_point(T_scene_model[:2, 3], self.config.place_radius_m)
-        if len(near) < self.config.ground.min_place_points:
+        xy, c = T_scene_model[:2, 3], self.config
+        near = self.ground_points.query_ball_point(xy, c.place_radius_m)
+        if len(near) < c.ground.min_place_points:
             return T_scene_model
+        heights = self.ground_points_z[near]
+        z = float(np.median(heights))
+        band_m = c.place_band_m
+        if band_m > 0:
+            above = self.surface_z[self.ground_xy.query_ball_point(xy, c.place_radius_m)]
+            heights = np.concatenate([heights, above])
+            for _ in range(_PLACE_ITERATIONS):
+                inside = heights[np.abs(heights - z) <= band_m]
+                z_next = float(np.median(inside)) if len(inside) else z
+                settled = abs(z_next - z) <= _PLACE_SETTLED * band_m
+                z = z_next
+                if settled:
+                    break
         T = T_scene_model.copy()
-        T[2, 3] = float(np.median(self.ground_points_z[near]))
+        T[2, 3] = z
         return T
 
     def stands(self, T_scene_model: np.ndarray) -> bool:

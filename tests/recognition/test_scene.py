@@ -1,6 +1,8 @@
 """Our steps around the paper's (atr.recognition.scene): an accepted ground vehicle is placed on the ground
 beside it, which the low-percentile ground estimate under it is not."""
 
+from dataclasses import replace
+
 import numpy as np
 
 from atr.recognition import RecognitionConfig
@@ -13,10 +15,12 @@ class _OnGround:
     points_m = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 2.3]])  # a 2.3 m tall vehicle
 
 
-def _noisy_ground_with_a_box(rng: np.random.Generator, ground_z_m: float) -> np.ndarray:
+def _noisy_ground_with_a_box(
+    rng: np.random.Generator, ground_z_m: float, sigma_m: float = 0.1
+) -> np.ndarray:
     """A noisy flat ground at ground_z_m (sigma 0.1 m, as SfM at 100 m) and a 3 x 3 x 2 m box on it."""
     ground = np.column_stack(
-        [rng.uniform(-20, 20, (6000, 2)), ground_z_m + rng.normal(0.0, 0.1, 6000)]
+        [rng.uniform(-20, 20, (6000, 2)), ground_z_m + rng.normal(0.0, sigma_m, 6000)]
     )
     ground = ground[np.abs(ground[:, :2]).max(axis=1) > 1.5]  # hidden under the box
     box = np.column_stack([rng.uniform(-1.5, 1.5, (800, 2)), rng.uniform(0.3, 2.0, 800)])
@@ -38,6 +42,24 @@ def test_an_accepted_vehicle_is_placed_on_the_median_of_the_ground_around_it():
     np.testing.assert_array_equal(placed[:2], sunk[:2])  # heading and x, y untouched
     # the estimate under the vehicle the matcher grouped with stands lower than the ground
     assert np.median(scene.surface.points_m[:, 2] - scene.height) < 0.95
+
+
+def test_in_a_noisier_cloud_the_placement_settles_on_the_ground_not_below_it():
+    """The ground points are cut at a low percentile plus the ground cut, so with sigma 0.2 m their
+    median stands low; the band about the estimate (``k_place_band``) brings it back to the ground."""
+    config = RecognitionConfig()
+    ground_points_only = replace(config, ground=replace(config.ground, k_place_band=0.0))
+    sunk = np.eye(4)
+    sunk[2, 3] = 0.7
+    for seed in range(3):
+        points = _noisy_ground_with_a_box(np.random.default_rng(seed), 1.0, sigma_m=0.2)
+        scene = remove_ground(
+            Scene(PointSet(points), np.array([0.0, -80.0, 40.0])), [_OnGround()], config, {}
+        )
+        assert GroundCheck(scene, ground_points_only).placed(sunk)[2, 3] < 1.0 - 0.1
+        placed = GroundCheck(scene, config).placed(sunk)
+        assert abs(placed[2, 3] - 1.0) < 0.05
+        np.testing.assert_array_equal(placed[:2], sunk[:2])
 
 
 def test_without_ground_in_reach_the_height_stays_as_icp_left_it():
