@@ -18,7 +18,7 @@ class _OnGround:
 def _noisy_ground_with_a_box(
     rng: np.random.Generator, ground_z_m: float, sigma_m: float = 0.1
 ) -> np.ndarray:
-    """A noisy flat ground at ground_z_m (sigma 0.1 m, as SfM at 100 m) and a 3 x 3 x 2 m box on it."""
+    """A noisy flat ground at ground_z_m (sigma_m: 0.1 m as SfM at 100 m) and a 3 x 3 x 2 m box on it."""
     ground = np.column_stack(
         [rng.uniform(-20, 20, (6000, 2)), ground_z_m + rng.normal(0.0, sigma_m, 6000)]
     )
