@@ -309,7 +309,9 @@ def test_point_to_plane_icp_fits_a_differently_sampled_surface_closer(vehicles, 
     # the template and the scene sample the hull apart (0.3 m): point-to-point ICP holds the fit at
     # offsets of that sampling, point-to-plane slides it along the surfaces
     cfg, tpls = templates
-    to_points = _median_error_m(vehicles, tpls[0], cfg)
+    to_points = _median_error_m(
+        vehicles, tpls[0], dataclasses.replace(cfg, icp_point_to_plane=False)
+    )
     to_planes = _median_error_m(
         vehicles, tpls[0], dataclasses.replace(cfg, icp_point_to_plane=True)
     )
