@@ -74,10 +74,10 @@ def test_a_paced_run_answers_every_frame_and_times_each_scene_once(flight, tmp_p
                 timings.append(codec.unpack(message.data))
     assert len(timings) == 4
     for timing in timings:
-        # the matcher's whole wall time is its total, not one more stage to add up
+        # the matcher's whole wall time is its total, not one more stage to add up; the stages are
+        # parts of it (no upper bound: how much a loaded machine adds between stages is not a property)
         assert "total" not in timing["stages_ms"]
-        stages_ms = sum(timing["stages_ms"].values())
-        assert stages_ms <= timing["total_ms"] <= 1.5 * stages_ms + 50.0
+        assert sum(timing["stages_ms"].values()) <= timing["total_ms"]
 
 
 def test_track_guided_search_through_the_services_is_deterministic_and_confirms(tmp_path):
