@@ -784,16 +784,23 @@ def _refine_with_icp(
                 target.normals = o3d.utility.Vector3dVector(np.asarray(normals, np.float64))
             if normal_spread(np.asarray(target.normals)) >= settings.plane_min_spread:
                 estimation = o3d.pipelines.registration.TransformationEstimationPointToPlane()
-        result = o3d.pipelines.registration.registration_icp(
-            src,
-            target,
-            float(icp_gate_m),
-            T_initial,
-            estimation,
-            o3d.pipelines.registration.ICPConvergenceCriteria(
-                max_iteration=int(settings.icp_iterations)
-            ),
-        )
+        # Open3D sums the point-to-plane normal equations in parallel, in an order that varies from
+        # run to run; one thread sums them in one order, so a replay gives the same bytes
+        threads = o3d.utility.get_max_threads()
+        o3d.utility.set_max_threads(1)
+        try:
+            result = o3d.pipelines.registration.registration_icp(
+                src,
+                target,
+                float(icp_gate_m),
+                T_initial,
+                estimation,
+                o3d.pipelines.registration.ICPConvergenceCriteria(
+                    max_iteration=int(settings.icp_iterations)
+                ),
+            )
+        finally:
+            o3d.utility.set_max_threads(threads)
         return np.asarray(result.transformation, np.float64).copy()
 
     T = None
