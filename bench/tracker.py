@@ -1,7 +1,8 @@
 """Tracker benchmark: time of one `Tracker.update` per scene (what services/tracker adds per scene).
 
-A flight of 200 scenes: one target seen with 0.4 m noise in 80 % of them, and `--clutter` false positives
-per scene scattered over 200 m (every one starts a tentative track). The time is the median over the
+A flight of 200 scenes, one orbit at 80 m: one target seen with 0.4 m noise in 80 % of them, and
+`--clutter` false positives per scene scattered over 200 m (every one starts a tentative track); each
+detection carries its scene's viewpoint, as the services' do. The time is the median over the
 scenes of the median over `--repeats` replays of the whole flight. With `--set tracking.FIELD=VALUE`,
 the same flight also runs with those settings, interleaved with the defaults in this process, and the
 ratio of the two is printed.
@@ -27,13 +28,16 @@ def flight(clutter: int, seed: int = 0) -> list[list[TrackInput]]:
     rng = np.random.default_rng(seed)
     target = np.array([12.0, -7.0, 0.0])
     scenes = []
-    for _ in range(SCENES):
+    for k in range(SCENES):
+        a = 2 * np.pi * k / SCENES
+        viewpoint = target + 80.0 * np.array([np.cos(a), np.sin(a), 0.5])
         ds = []
         if rng.random() < 0.8:
-            ds.append(TrackInput("t72", target + rng.normal(0, 0.4, 3), 0.7 + rng.normal(0, 0.1)))
+            p = target + rng.normal(0, 0.4, 3)
+            ds.append(TrackInput("t72", p, 0.7 + rng.normal(0, 0.1), 1.0, viewpoint))
         for _ in range(clutter):
             p = rng.uniform(-100, 100, 3) * [1, 1, 0]
-            ds.append(TrackInput("t72", p, rng.uniform(-np.pi, np.pi)))
+            ds.append(TrackInput("t72", p, rng.uniform(-np.pi, np.pi), 1.0, viewpoint))
         scenes.append(ds)
     return scenes
 

@@ -69,13 +69,16 @@ def track_score(
     """Run the tracker (services/tracker's) over a run's scenes and judge its confirmed tracks.
 
     The detections enter the tracker as scoring sees them (`sensor_relative`: the pipeline's navigation
-    drift is reported apart), with their headings; a scene a stage refused has no Detections, so the
+    drift is reported apart), with their headings, seen from the true camera; a scene a stage refused has no Detections, so the
     tracker skips it as the service would. Confirmed and lost (coasting) tracks of the target are the
     scene's hypotheses; a target in the scene but below the visibility rule is "hidden".
     """
     tracker = Tracker(config)
     truth, hidden, tracks = [], [], []
     for record in records:
+        # the detections are placed relative to the true camera, so that is where they were seen from
+        camera = record.T_world_cam_true
+        viewpoint_m = None if camera is None else np.asarray(camera, np.float64)[:3, 3]
         if record.error is None:
             tracker.update(
                 [
@@ -84,6 +87,7 @@ def track_score(
                         record.sensor_relative(d["position_m"]),
                         record.sensor_relative_yaw(d["yaw_rad"]) if "yaw_rad" in d else None,
                         d["score"],
+                        viewpoint_m,
                     )
                     for d in record.detections
                 ],

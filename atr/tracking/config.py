@@ -42,6 +42,15 @@ class TrackingConfig:
             Chosen on tuning seed 101 (every scene of scenarios 1-2): fused error at 100 m 0.12-0.23 ->
             0.08-0.17 m, at 50 m 0.06-0.11 -> 0.05-0.08 m, track F1 and false tracks the same
             (docs/tracking.md). The covariance stays the filter's.
+        fuse_line_of_sight_weight: in the median, the weight of a detection's offset along its
+            horizontal line of sight (``TrackInput.viewpoint_m``) against 1 across it: an SfM cloud
+            is least sure in depth, and the matcher's fits sit a few centimetres to a decimetre beyond
+            or before the vehicle as the camera sees it, an offset that turns with the view and that
+            a median over a part of the orbit keeps. 0.25 (depth twice as uncertain as the rest):
+            chosen on tuning seeds 101 and 102 (every scene at 100 m, seed 101 at 50 m too; 1 is the
+            plain median, 0.1 and 0.5 gave the same or less): fused error at 100 m 0.06-0.18 ->
+            0.05-0.16 m, seed 101's run 2-3 0.14 -> 0.09 m, at 50 m 0.01-0.06 m either way
+            (docs/tracking.md).
         fuse_window: scenes of detections the median runs over: a parked vehicle's, about two thirds of
             an orbit at one scene a second (64 and 128 measured the same on the tuning seed, 32 worse
             at 100 m); a vehicle that moves within the gate is followed once half the window saw it there.
@@ -87,6 +96,7 @@ class TrackingConfig:
     supporting_max: int = bounded(32, ge=1)
     fuse_median: bool = True
     fuse_window: int = bounded(64, ge=1)
+    fuse_line_of_sight_weight: float = bounded(0.25, gt=0, le=1)
     place_hits: bool = True
     class_votes: bool = False
     class_recurs: bool = True

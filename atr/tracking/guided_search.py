@@ -205,12 +205,20 @@ class GuidedSearch:
         result.stats["search"] = "whole" if regions is None else len(regions)
         result.stats["searched_points"] = len(points)
         if self.tracking.guided_search:
-            self._observe(result, stamp_ns, whole=regions is None)
+            self._observe(result, stamp_ns, viewpoint_m, whole=regions is None)
         return result
 
-    def _observe(self, result: RecognitionResult, stamp_ns: int, *, whole: bool) -> None:
+    def _observe(
+        self,
+        result: RecognitionResult,
+        stamp_ns: int,
+        viewpoint_m: np.ndarray | None,
+        *,
+        whole: bool,
+    ) -> None:
         inputs = [
-            TrackInput.from_pose(d.target, d.T_world_target, d.score) for d in result.detections
+            TrackInput.from_pose(d.target, d.T_world_target, d.score, viewpoint_m)
+            for d in result.detections
         ]
         try:
             self.tracker.update(inputs, stamp_ns)

@@ -38,6 +38,10 @@ class TrackInput:
             positions only (the heading gate and heading fusion are then skipped).
         score: the matcher's score of the detection (its class evidence with
             ``TrackingConfig.class_votes``).
+        viewpoint_m: (3,) sensor position of the scene the detection came from, world frame, metres;
+            None when unknown. The fused median weighs the detection's offset along its horizontal
+            line of sight by ``TrackingConfig.fuse_line_of_sight_weight``: an SfM cloud is least
+            sure in depth.
 
     """
 
@@ -45,12 +49,32 @@ class TrackInput:
     position_m: np.ndarray
     yaw_rad: float | None = None
     score: float = 1.0
+    viewpoint_m: np.ndarray | None = None
 
     @classmethod
-    def from_pose(cls, target: str, T_world_target: np.ndarray, score: float = 1.0) -> TrackInput:
+    def from_pose(
+        cls,
+        target: str,
+        T_world_target: np.ndarray,
+        score: float = 1.0,
+        viewpoint_m: np.ndarray | None = None,
+    ) -> TrackInput:
         """A detection from its 4x4 world-from-target pose (heading from the x axis's direction)."""
         T = np.asarray(T_world_target, np.float64)
-        return cls(target, T[:3, 3].copy(), float(math.atan2(T[1, 0], T[0, 0])), float(score))
+        yaw = float(math.atan2(T[1, 0], T[0, 0]))
+        viewpoint = None if viewpoint_m is None else np.asarray(viewpoint_m, np.float64)
+        return cls(target, T[:3, 3].copy(), yaw, float(score), viewpoint)
+
+    def line_of_sight(self) -> np.ndarray:
+        """(3,) horizontal unit vector from the viewpoint to the detection; zeros when the viewpoint
+        is unknown or straight above it.
+        """
+        if self.viewpoint_m is None:
+            return np.zeros(3)
+        ray = np.asarray(self.position_m, np.float64) - self.viewpoint_m
+        ray[2] = 0.0
+        norm = float(np.linalg.norm(ray))
+        return ray / norm if norm > 1e-6 else np.zeros(3)
 
 
 @dataclass
@@ -74,6 +98,7 @@ class Track:
         last_seen_ns: stamp of the latest detection.
         supporting_stamps_ns: stamps of the latest supporting detections, oldest first.
         places_m: positions of the latest ``TrackingConfig.fuse_window`` detections fused, oldest first.
+        sights: their horizontal lines of sight (``TrackInput.line_of_sight``), the same order.
         class_evidence: with ``TrackingConfig.class_votes``, the summed scores of the detections of
             each class at the track's place.
         class_hits: with ``TrackingConfig.class_votes``, how many detections of each class it had.
@@ -93,6 +118,7 @@ class Track:
     last_seen_ns: int = 0
     supporting_stamps_ns: list[int] = field(default_factory=list)
     places_m: list[np.ndarray] = field(default_factory=list, repr=False)
+    sights: list[np.ndarray] = field(default_factory=list, repr=False)
     class_evidence: dict[str, float] = field(default_factory=dict)
     class_hits: dict[str, int] = field(default_factory=dict)
     _window: list[bool] = field(default_factory=list, repr=False)
@@ -118,18 +144,37 @@ class Track:
 
 
 def geometric_median(
-    points_m: np.ndarray, start_m: np.ndarray | None = None, tol_m: float = 1e-4, max_iter: int = 50
+    points_m: np.ndarray,
+    start_m: np.ndarray | None = None,
+    tol_m: float = 1e-4,
+    max_iter: int = 50,
+    sights: np.ndarray | None = None,
+    sight_weight: float = 1.0,
 ) -> np.ndarray:
     """The point with the least summed distance to `points_m` (N, 3): Weiszfeld's iteration from
     `start_m` (the coordinate-wise median when None) until a step is under `tol_m`. Unlike the
     coordinate-wise median it does not depend on the world axes; a few lines of numpy, as neither numpy
     nor scipy has it. Deterministic: the same points and start give the same point.
+
+    With `sights` (N, 3) unit vectors (or zeros), each point's distance is measured with the part
+    along its sight scaled by sqrt(`sight_weight`): the metric (x - p)^T W (x - p), W = I - (1 - w) s s^T,
+    and the iteration is the same reweighting with W (each step a 3 x 3 solve).
     """
     y = np.median(points_m, axis=0) if start_m is None else np.asarray(start_m, np.float64)
+    # (x - p)^T W (x - p) = |x - p|^2 - k (s . (x - p))^2 with k = 1 - w: no 3 x 3 per point
+    k = 0.0 if sights is None else 1.0 - sight_weight
+    s = np.zeros_like(points_m) if sights is None else np.asarray(sights, np.float64)
+    s_dot_p = np.einsum("ij,ij->i", s, points_m)
     for _ in range(max_iter):
+        offsets = points_m - y
+        along = s_dot_p - s @ y
+        squared = np.einsum("ij,ij->i", offsets, offsets) - k * along * along
         # a point at y would divide by zero; 1 mm keeps its weight finite and large
-        w = 1.0 / np.maximum(np.linalg.norm(points_m - y, axis=1), 1e-3)
-        y_next = w @ points_m / w.sum()
+        inv = 1.0 / np.sqrt(np.maximum(squared, 1e-6))
+        # sum_i W_i / d_i and sum_i W_i p_i / d_i
+        A = inv.sum() * np.eye(3) - k * (s.T * inv) @ s
+        b = inv @ points_m - k * (inv * s_dot_p) @ s
+        y_next = np.linalg.solve(A, b)
         if float(np.linalg.norm(y_next - y)) < tol_m:
             return y_next
         y = y_next
@@ -325,9 +370,15 @@ class Tracker:
         track.P_position = (np.eye(3) - K) @ track.P_position
         track.P_position = 0.5 * (track.P_position + track.P_position.T)  # keep it symmetric
         track.places_m = [*track.places_m, np.asarray(d.position_m, np.float64)][-c.fuse_window :]
+        track.sights = [*track.sights, d.line_of_sight()][-c.fuse_window :]
         if c.fuse_median and len(track.places_m) >= 3:  # of two points any between is a median
             # from the last fused position: a new place moves the median little, so a few steps do
-            track.position_m = geometric_median(np.asarray(track.places_m), start_m=previous_m)
+            track.position_m = geometric_median(
+                np.asarray(track.places_m),
+                start_m=previous_m,
+                sights=np.asarray(track.sights),
+                sight_weight=c.fuse_line_of_sight_weight,
+            )
         if heading and d.yaw_rad is not None and self._heading_fits(track, d):
             r_yaw = math.radians(c.yaw_sigma_deg) ** 2
             if math.isfinite(track.yaw_var):
@@ -382,6 +433,7 @@ class Tracker:
                 last_seen_ns=stamp_ns,
                 supporting_stamps_ns=[stamp_ns],
                 places_m=[np.asarray(d.position_m, np.float64).copy()],
+                sights=[d.line_of_sight()],
                 _window=[True],
             )
             self._vote(track, d)

@@ -99,16 +99,16 @@ def main(argv: list[str] | None = None) -> int:
                             "regions_m": regions_to_array(search.held_regions() or []),
                         },
                     )
-                node.publish(
-                    keys.detections(args.uav),
-                    {
-                        "stamp_ns": message.stamp_ns,
-                        "cloud_seq": message.seq,
-                        "frame_seqs": list(cloud["frame_seqs"]),
-                        "source": cloud["source"],
-                        "detections": [_detection(d) for d in result.detections],
-                    },
-                )
+                answer = {
+                    "stamp_ns": message.stamp_ns,
+                    "cloud_seq": message.seq,
+                    "frame_seqs": list(cloud["frame_seqs"]),
+                    "source": cloud["source"],
+                    "detections": [_detection(d) for d in result.detections],
+                }
+                if "viewpoint_m" in cloud:  # where the tracker sees each detection from
+                    answer["viewpoint_m"] = cloud["viewpoint_m"]
+                node.publish(keys.detections(args.uav), answer)
                 answered.append((message.source, message.seq))
                 node.timing(message.seq, message.stamp_ns, result.stage_times_ms)
     return 0

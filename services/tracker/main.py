@@ -65,7 +65,12 @@ def main(argv: list[str] | None = None) -> int:
                 t0 = time.perf_counter()
                 tracks = tracker.update(
                     [
-                        TrackInput.from_pose(d["target"], d["T_world_target"], d["score"])
+                        TrackInput.from_pose(
+                            d["target"],
+                            d["T_world_target"],
+                            d["score"],
+                            message.data.get("viewpoint_m"),
+                        )
                         for d in message.data["detections"]
                     ],
                     message.stamp_ns,

@@ -9,6 +9,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mcap.reader import make_reader
 
@@ -66,7 +67,12 @@ def test_a_paced_run_answers_every_frame_and_times_each_scene_once(flight, tmp_p
     done = atr("run", str(flight), "--out", str(out), "--rate", "4", *SMALL_CAMERA, timeout_s=900)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "replayed 4 frames (0 unanswered)" in done.stdout
-    assert len(data_messages(out)[keys.detections("uav1")]) == 4
+    messages = data_messages(out)
+    assert len(messages[keys.detections("uav1")]) == 4
+    # each answer says where its cloud was seen from: the tracker weighs the line of sight by it
+    clouds = {c["seq"]: c for c in map(codec.unpack, messages[keys.sfm_cloud("uav1")])}
+    for answer in map(codec.unpack, messages[keys.detections("uav1")]):
+        assert np.array_equal(answer["viewpoint_m"], clouds[answer["cloud_seq"]]["viewpoint_m"])
     timings = []
     with out.open("rb") as stream:
         for _, channel, message in make_reader(stream).iter_messages():

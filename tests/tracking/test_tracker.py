@@ -361,3 +361,60 @@ def test_the_median_runs_over_the_latest_fuse_window_detections():
     (track,) = tracker.tracks
     assert len(track.places_m) == 5
     assert np.allclose(track.position_m, TARGET_M + [0.6, 0, 0])
+
+
+def test_the_median_weighted_along_the_lines_of_sight_is_the_least_summed_weighted_distance():
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(4)
+    points = rng.normal(0, 0.2, (30, 3))
+    azimuth = rng.uniform(0, 2 * math.pi, 30)
+    sights = np.column_stack([np.cos(azimuth), np.sin(azimuth), np.zeros(30)])
+    sights[:3] = 0.0  # detections whose viewpoint is unknown weigh every direction alike
+    w = 0.25
+    W = np.eye(3) - (1 - w) * sights[:, :, None] * sights[:, None, :]
+
+    def cost(q: np.ndarray) -> float:
+        d = points - q
+        return float(np.sqrt(np.einsum("ni,nij,nj->n", d, W, d)).sum())
+
+    y = geometric_median(points, sights=sights, sight_weight=w)
+    # scipy's general minimiser of the same cost is the outside reference
+    ref = minimize(cost, points.mean(0), tol=1e-10).x
+    assert np.linalg.norm(y - ref) < 1e-3
+    assert cost(y) <= cost(points.mean(0))
+    # weight 1 is the plain median
+    assert np.allclose(
+        geometric_median(points, sights=sights, sight_weight=1.0), geometric_median(points)
+    )
+
+
+def test_a_fit_offset_along_the_line_of_sight_is_fused_away_over_half_an_orbit():
+    """Detections that sit 0.15 m beyond the vehicle as the camera sees it, over half an orbit: the
+    plain median keeps most of that offset, the median that weighs the line of sight less does not."""
+
+    def fused_error_m(weight: float) -> float:
+        tracker = Tracker(TrackingConfig(fuse_line_of_sight_weight=weight))
+        rng = np.random.default_rng(5)
+        for k, azimuth in enumerate(np.linspace(0.0, math.pi, 25)):
+            viewpoint = TARGET_M + 80.0 * np.array([math.cos(azimuth), math.sin(azimuth), 0.5])
+            sight = (TARGET_M - viewpoint) * [1, 1, 0]
+            sight /= np.linalg.norm(sight)
+            p = TARGET_M + 0.15 * sight + rng.normal(0, 0.02, 3)
+            tracker.update([TrackInput("t72", p, TARGET_YAW, 1.0, viewpoint)], stamp(k))
+        (track,) = tracker.tracks
+        return float(np.linalg.norm(track.position_m - TARGET_M))
+
+    plain, weighted = fused_error_m(1.0), fused_error_m(0.25)
+    assert plain > 0.08  # of 0.15 m: two thirds of it stay
+    assert weighted < 0.5 * plain, (plain, weighted)
+
+
+def test_from_pose_keeps_the_viewpoint_and_a_detection_without_one_has_no_line_of_sight():
+    T = np.eye(4)
+    T[:3, 3] = [10.0, 0.0, 0.0]
+    seen = TrackInput.from_pose("t72", T, 0.9, viewpoint_m=[0.0, 0.0, 50.0])
+    assert np.allclose(seen.line_of_sight(), [1.0, 0.0, 0.0])
+    assert np.allclose(TrackInput.from_pose("t72", T).line_of_sight(), 0.0)
+    overhead = TrackInput.from_pose("t72", T, viewpoint_m=[10.0, 0.0, 80.0])
+    assert np.allclose(overhead.line_of_sight(), 0.0)
