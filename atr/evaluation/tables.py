@@ -69,9 +69,10 @@ def track_score(
     """Run the tracker (services/tracker's) over a run's scenes and judge its confirmed tracks.
 
     The detections enter the tracker as scoring sees them (`sensor_relative`: the pipeline's navigation
-    drift is reported apart), with their headings, seen from the true camera; a scene a stage refused has no Detections, so the
-    tracker skips it as the service would. Confirmed and lost (coasting) tracks of the target are the
-    scene's hypotheses; a target in the scene but below the visibility rule is "hidden".
+    drift is reported apart), with their headings, seen from the true camera; a scene a stage refused
+    has no Detections, so the tracker skips it as the service would. Confirmed and lost (coasting)
+    tracks of the target are the scene's hypotheses; a target in the scene but below the visibility
+    rule is "hidden".
     """
     tracker = Tracker(config)
     truth, hidden, tracks = [], [], []
