@@ -220,12 +220,16 @@ class Node:
         return self._stop.is_set()
 
     def close(self) -> None:
-        """Publish a last status and close the session."""
+        """Publish a last status, linger for subscribers still fetching, and close the session."""
         self._stop.set()
         try:
             self._publish_status("stopping")
         except Exception:  # the session may already be gone at interpreter exit
             log.debug("last status not sent", exc_info=True)
+        else:
+            # a subscriber that finds a sample missing when the last status arrives fetches it from
+            # this process's caches: keep them for a round trip (LinkBudget.linger_s)
+            time.sleep(self._budget.linger_s)
         with self._publish_lock:
             publishers, self._publishers = list(self._publishers.values()), {}
         for entity in self._subscribers + self._queryables + publishers:

@@ -63,9 +63,13 @@ class LinkBudget:
             large message (a camera image) below `rate_hz * outage_s`.
         heartbeat_s: how often a publisher says its last sequence number (the delay to notice
             that the last samples before an outage were missed; ~90 bytes per publisher), seconds.
+        linger_s: how long a closing Node keeps its publishers (and their caches) after its last
+            status, seconds: a subscriber that finds a sample missing when that status arrives
+            fetches it within a round trip over the link and the queue before it (a sample dropped
+            on a congested link just before a service ends is otherwise lost with the process).
 
     Environment overrides (read by `from_env`): ATR_LINK_OUTAGE_S, ATR_LINK_RATE_HZ,
-    ATR_LINK_CACHE_MB, ATR_LINK_HEARTBEAT_S.
+    ATR_LINK_CACHE_MB, ATR_LINK_HEARTBEAT_S, ATR_LINK_LINGER_S.
 
     """
 
@@ -73,12 +77,16 @@ class LinkBudget:
     rate_hz: float = 4.0
     cache_bytes: int = 16 * MIB
     heartbeat_s: float = 1.0
+    linger_s: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("outage_s", "rate_hz", "heartbeat_s"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ConfigError(f"link budget {name} {value!r} must be a number > 0")
+        linger = self.linger_s
+        if not (isinstance(linger, int | float) and math.isfinite(linger) and linger >= 0):
+            raise ConfigError(f"link budget linger_s {linger!r} must be a number >= 0")
         if self.cache_bytes < 1:
             raise ConfigError(f"link budget cache_bytes {self.cache_bytes} must be >= 1")
 
@@ -96,6 +104,7 @@ class LinkBudget:
             ("ATR_LINK_RATE_HZ", "rate_hz", 1.0),
             ("ATR_LINK_CACHE_MB", "cache_bytes", MIB),
             ("ATR_LINK_HEARTBEAT_S", "heartbeat_s", 1.0),
+            ("ATR_LINK_LINGER_S", "linger_s", 1.0),
         ):
             text = os.environ.get(env)
             if text is None:

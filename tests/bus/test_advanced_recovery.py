@@ -164,3 +164,15 @@ def test_outages_within_the_cache_lose_nothing_and_beyond_it_are_counted(tmp_pat
         recorder_session.close()
         if router.proc is not None:
             stop_process(router.proc)
+
+
+def test_the_link_budget_reads_its_linger_and_refuses_a_negative_one(monkeypatch) -> None:
+    from atr.errors import ConfigError
+
+    monkeypatch.setenv("ATR_LINK_LINGER_S", "0.25")
+    assert LinkBudget.from_env().linger_s == 0.25
+    monkeypatch.setenv("ATR_LINK_LINGER_S", "0")  # no linger: a closing node leaves at once
+    assert LinkBudget.from_env().linger_s == 0.0
+    monkeypatch.setenv("ATR_LINK_LINGER_S", "-1")
+    with pytest.raises(ConfigError, match="linger_s -1.0 must be a number >= 0"):
+        LinkBudget.from_env()
