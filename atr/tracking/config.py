@@ -48,7 +48,8 @@ class TrackingConfig:
             or before the vehicle as the camera sees it, an offset that turns with the view and that
             a median over a part of the orbit keeps. 0.25 (depth twice as uncertain as the rest):
             chosen on tuning seeds 101 and 102 (every scene at 100 m, seed 101 at 50 m too; 1 is the
-            plain median, 0.1 and 0.5 gave the same or less): fused error at 100 m 0.06-0.18 ->
+            plain median; 0.1 and 0.5 within 0.03 m of 0.25 on every run, neither better on all):
+            fused error at 100 m 0.06-0.18 ->
             0.05-0.16 m, seed 101's run 2-3 0.14 -> 0.09 m, at 50 m 0.01-0.06 m either way
             (docs/tracking.md).
         fuse_window: scenes of detections the median runs over: a parked vehicle's, about two thirds of
