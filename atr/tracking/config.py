@@ -48,10 +48,9 @@ class TrackingConfig:
             or before the vehicle as the camera sees it, an offset that turns with the view and that
             a median over a part of the orbit keeps. 0.25 (depth twice as uncertain as the rest):
             chosen on tuning seeds 101 and 102 (every scene at 100 m, seed 101 at 50 m too; 1 is the
-            plain median; 0.1 and 0.5 within 0.03 m of 0.25 on every run, neither better on all):
-            fused error at 100 m 0.06-0.18 ->
-            0.05-0.16 m, seed 101's run 2-3 0.14 -> 0.09 m, at 50 m 0.01-0.06 m either way
-            (docs/tracking.md).
+            plain median; on seed 101 0.1 and 0.5 came within 0.03 m of 0.25 on every run, neither
+            better on all): fused error at 100 m 0.06-0.18 -> 0.05-0.16 m, seed 101's run 2-3
+            0.14 -> 0.09 m, at 50 m 0.01-0.06 m either way (docs/tracking.md).
         fuse_window: scenes of detections the median runs over: a parked vehicle's, about two thirds of
             an orbit at one scene a second (64 and 128 measured the same on the tuning seed, 32 worse
             at 100 m); a vehicle that moves within the gate is followed once half the window saw it there.
