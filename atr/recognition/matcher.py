@@ -10,13 +10,14 @@ hypotheses of different targets share a place it goes to the template that expla
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Collection, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from atr.errors import InputError
 from atr.recognition import _backend, steps
 from atr.recognition.attention import Blob, vehicle_places
 from atr.recognition.competition import Candidate, CompetitionSettings, compete_for_places
@@ -213,23 +214,30 @@ def verify_places(
     seed: int,
     viewpoint_m: np.ndarray | None = None,
     scene_sigma_m: np.ndarray | None = None,
+    targets_per_place: Sequence[Collection[str]] | None = None,
 ) -> RecognitionResult:
     """Confirm targets where they are expected (ours: the track-guided scenes of
-    ``atr.tracking.guided_search``): every template is laid at every place's pose and refined by ICP,
+    ``atr.tracking.guided_search``): the templates are laid at each place's pose and refined by ICP,
     with no description, matching, grouping or RANSAC; acceptance and the place competition are
     ``recognize``'s, so a place goes to the template that explains it best, as there.
 
     Args:
         scene_points_m, templates, config, seed, viewpoint_m, scene_sigma_m: as ``recognize``.
         places_T_world_target: (4, 4) world-from-target poses to try (e.g. the tracks' fused poses).
+        targets_per_place: per place, the targets whose templates are laid there (the classes the
+            place has been given to); None: every template at every place.
 
     Returns:
         RecognitionResult with the same stages as ``recognize`` (describe, match, group and ransac 0).
 
     Raises:
-        As ``recognize``.
+        As ``recognize``; InputError: ``targets_per_place`` does not hold one set per place.
 
     """
+    if targets_per_place is not None and len(targets_per_place) != len(places_T_world_target):
+        raise InputError(
+            f"{len(targets_per_place)} target sets for {len(places_T_world_target)} places"
+        )
     clock = _Clock()
     stats: dict[str, Any] = {}
     pts, sigma = validated_cloud(scene_points_m, scene_sigma_m, config)
@@ -241,7 +249,17 @@ def verify_places(
         stats["reason"] = str(reason)
         return RecognitionResult([], clock.result(), stats)
     search = _Search(scene, config, rng, clock)
-    stats["templates"] = [search.confirm(tpl, places_T_world_target) for tpl in templates]
+    stats["templates"] = [
+        search.confirm(
+            tpl,
+            [
+                T
+                for k, T in enumerate(places_T_world_target)
+                if targets_per_place is None or tpl.target in targets_per_place[k]
+            ],
+        )
+        for tpl in templates
+    ]
     return _compete(search, config, clock, stats)
 
 

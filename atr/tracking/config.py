@@ -74,6 +74,10 @@ class TrackingConfig:
             docs/tracking.md).
         guided_sfm: with guided_search, a guided scene's SfM step matches only the image window that
             holds the search regions (``atr.sfm.dense``): the dense step costs what the window does.
+        guided_place_classes: with guided_search, a guided scene lays at a track's pose only the
+            templates of the classes whose tracks stand at that place (a whole search gave it to
+            them), not every template: among a family of eleven most of a guided scene is ICP of
+            templates no whole search put there.
         full_search_every: with guided_search, every this-many-th scene searches the whole cloud.
         k_search_radius: a held track's search cylinder's radius / the largest template's footprint
             (length + width): a vehicle at the track's place is inside at any heading (its half-diagonal
@@ -102,6 +106,7 @@ class TrackingConfig:
     class_recurs: bool = True
     guided_search: bool = False
     guided_sfm: bool = True
+    guided_place_classes: bool = True
     full_search_every: int = bounded(4, ge=1)
     k_search_radius: float = bounded(0.6, gt=0)
 

@@ -3,10 +3,10 @@
 A UAV orbiting a target sees it in dozens of consecutive scenes, and a parked vehicle does not move between
 them. So once the matcher's own tracker holds a track (confirmed, or lost for a few scenes), the scenes
 between two whole-cloud searches only confirm: the cloud is cut to a vertical cylinder around each live
-track, and every template is laid at each track's fused pose and refined by ICP
-(``atr.recognition.verify_places``), with no description, matching, grouping or RANSAC; acceptance and
-the place competition are the whole search's, so a place still goes to the template that explains it
-best. The whole cloud is searched every ``tracking.full_search_every``-th scene and whenever no track is
+track, and the templates of the classes held at each track's place (``tracking.guided_place_classes``)
+are laid at its fused pose and refined by ICP (``atr.recognition.verify_places``), with no description,
+matching, grouping or RANSAC; acceptance and the place competition are the whole search's, so a place
+still goes to the template that explains it best among those a whole search gave it to. The whole cloud is searched every ``tracking.full_search_every``-th scene and whenever no track is
 held, so a target that appears, or one a false track hid, is found there (``SearchSchedule``). The
 dense SfM step of a guided scene matches only the image window that holds the cylinders
 (``tracking.guided_sfm``, ``atr.sfm.dense``).
@@ -132,19 +132,29 @@ class GuidedSearch:
             for t in tracks
         ]
 
-    def places(self) -> list[np.ndarray]:
-        """The poses a guided scene confirms: each live track's fused pose, and turned by 180 degrees
-        where its heading is known only modulo 180 degrees (or not at all).
+    def places(self) -> tuple[list[np.ndarray], list[frozenset[str]] | None]:
+        """The poses a guided scene confirms and the templates laid at each: every live track's fused
+        pose, turned by 180 degrees too where its heading is known only modulo 180 degrees (or not at
+        all). With ``tracking.guided_place_classes`` a pose gets the templates of the classes whose
+        tracks stand at its place (within the search radius of it), else every template (None).
         """
-        poses = []
-        for track in self.tracker.tracks:
+        tracks = self.tracker.tracks
+        poses, targets = [], []
+        for track in tracks:
             T = track.T_world_target
-            poses.append(T)
+            there = frozenset(
+                other.target
+                for other in tracks
+                if np.linalg.norm(other.position_m[:2] - track.position_m[:2]) <= self.radius_m
+            )
+            turns = [T]
             if track.yaw_ambiguous or not np.isfinite(track.yaw_var):
                 flipped = T.copy()
                 flipped[:2, :2] = -T[:2, :2]
-                poses.append(flipped)
-        return poses
+                turns.append(flipped)
+            poses += turns
+            targets += [there] * len(turns)
+        return poses, targets if self.tracking.guided_place_classes else None
 
     def __call__(
         self,
@@ -193,14 +203,16 @@ class GuidedSearch:
             points = points[inside]
             if sigma is not None and np.shape(sigma) == (len(inside),):
                 sigma = np.asarray(sigma)[inside]
+            poses, targets = self.places()
             result = verify_places(
                 points,
                 self.templates,
                 self.recognition,
-                self.places(),
+                poses,
                 seed=seed,
                 viewpoint_m=viewpoint_m,
                 scene_sigma_m=sigma,
+                targets_per_place=targets,
             )
         result.stats["search"] = "whole" if regions is None else len(regions)
         result.stats["searched_points"] = len(points)

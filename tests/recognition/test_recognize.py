@@ -244,6 +244,26 @@ def test_verify_places_confirms_the_t72_where_it_stands_and_nowhere_else(vehicle
     assert res.detections == []
 
 
+def test_verify_places_lays_only_the_templates_named_for_a_place(vehicles, templates):
+    cfg, tpls = templates
+    scene, T = _scene(vehicles, "t72")
+
+    def laid(targets):
+        res = verify_places(
+            scene, tpls, cfg, [T], seed=0, viewpoint_m=VIEWPOINT, targets_per_place=targets
+        )
+        hypotheses = {t["target"]: t["hypotheses"] for t in res.stats["templates"]}
+        return hypotheses, [d.target for d in res.detections]
+
+    assert laid(None) == ({"t72": 1, "truck": 1, "car": 1}, ["t72"])
+    assert laid([{"t72", "car"}]) == ({"t72": 1, "truck": 0, "car": 1}, ["t72"])
+    # the tank's own template not laid: the place is not called a tank
+    hypotheses, found = laid([{"truck"}])
+    assert hypotheses == {"t72": 0, "truck": 1, "car": 0} and "t72" not in found
+    with pytest.raises(InputError, match="2 target sets for 1 places"):
+        laid([{"t72"}, {"car"}])
+
+
 def test_a_cued_place_finds_the_t72_with_no_descriptor_evidence(vehicles, templates):
     cfg, tpls = templates
     blind = dataclasses.replace(cfg, knndr_ratio=1e-9)  # no correspondence survives matching

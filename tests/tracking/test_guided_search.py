@@ -115,3 +115,33 @@ def test_a_tentative_track_is_searched_beside_a_held_one(world) -> None:
     assert regions is not None and len(regions) == 2
     centres = sorted(tuple(np.round(r.centre_m, 1)) for r in regions)
     assert centres == [(5.0, -8.0), (17.6, 11.8)]
+
+
+def test_a_guided_scene_lays_at_a_place_only_the_classes_held_there(world) -> None:
+    cfg, templates, scene, tank_m = world
+    truck_m = TRUCK_SHIFT_M  # the truck stands at its scene's origin with heading 0.2 rad
+    for per_place in (True, False):
+        tracking = TrackingConfig(
+            guided_search=True, full_search_every=3, guided_place_classes=per_place
+        )
+        search = GuidedSearch(templates, cfg, tracking)
+        for k in (1, 2):  # both confirmed, each with a known heading
+            search.tracker.update(
+                [
+                    TrackInput("t72", tank_m, yaw_rad=0.7, score=0.9),
+                    TrackInput("truck6x6", truck_m, yaw_rad=0.2, score=0.8),
+                ],
+                k * SCENE_S,
+            )
+        search.schedule.searched(whole=True)  # the next scene is a guided one
+        poses, targets = search.places()
+        assert len(poses) == 2
+        if per_place:
+            assert targets == [frozenset({"t72"}), frozenset({"truck6x6"})]
+        else:
+            assert targets is None
+        result = search(scene, seed=0, stamp_ns=3 * SCENE_S, viewpoint_m=VIEWPOINT)
+        assert result.stats["search"] == 2  # guided: both tracks' cylinders
+        laid = {t["target"]: t["hypotheses"] for t in result.stats["templates"]}
+        assert laid == ({"t72": 1, "truck6x6": 1} if per_place else {"t72": 2, "truck6x6": 2})
+        assert _tank_found(result, tank_m)
