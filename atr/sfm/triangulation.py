@@ -482,7 +482,7 @@ def triangulate_linear(
     once. ``cv2.triangulatePoints`` solves the homogeneous form with one SVD per point: the same point for
     rays that meet (1e-12 m apart); for rays that pixel noise makes miss, OpenCV's point lies ~230 x
     further from the truth than from ours at 0.5 px, ~120 x at 1 px (tests/sfm). Written here for speed:
-    0.18-0.20 x OpenCV's time on a dense pair's correspondences (``bench/sfm.py``; docs/sfm.md,
+    0.04-0.05 x OpenCV's time on a dense pair's correspondences (``bench/sfm.py``; docs/sfm.md,
     "Triangulation with the known pose").
 
     Args:
@@ -495,24 +495,40 @@ def triangulate_linear(
         (N, 3) points in camera a's frame; rows of rays that meet nowhere (parallel) are not finite.
 
     """
-    xa, ya = normalised_a[:, 0:1], normalised_a[:, 1:2]
-    xb, yb = normalised_b[:, 0:1], normalised_b[:, 1:2]
-    zeros, ones = np.zeros_like(xa), np.ones_like(xa)
-    rows = (
-        np.hstack([-ones, zeros, xa]),
-        np.hstack([zeros, -ones, ya]),
-        xb * R_ba[2] - R_ba[0],
-        yb * R_ba[2] - R_ba[1],
-    )
-    rhs = (0.0, 0.0, t_ba[0] - xb * t_ba[2], t_ba[1] - yb * t_ba[2])
-    # normal equations A^T A X = A^T b, column by column of the symmetric A^T A
-    c0, c1, c2 = (sum(r * r[:, i : i + 1] for r in rows) for i in range(3))
-    target = rows[2] * rhs[2] + rows[3] * rhs[3]
-    adjugate_rows = (np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1))
-    det = np.einsum("ni,ni->n", c0, adjugate_rows[0])
+    xa, ya = normalised_a[:, 0], normalised_a[:, 1]
+    xb, yb = normalised_b[:, 0], normalised_b[:, 1]
+    # The DLT's rows: (-1, 0, xa), (0, -1, ya), p = xb R_2 - R_0 and q = yb R_2 - R_1, with right-hand
+    # sides 0, 0, u and v. The six entries of the symmetric A^T A and A^T b are written out, per point,
+    # so that no (N, 3) temporary is made per product.
+    p0, p1, p2 = (xb * R_ba[2, i] - R_ba[0, i] for i in range(3))
+    q0, q1, q2 = (yb * R_ba[2, i] - R_ba[1, i] for i in range(3))
+    u = t_ba[0] - xb * t_ba[2]
+    v = t_ba[1] - yb * t_ba[2]
+    c00 = 1.0 + p0 * p0 + q0 * q0
+    c01 = p0 * p1 + q0 * q1
+    c02 = p0 * p2 + q0 * q2 - xa
+    c11 = 1.0 + p1 * p1 + q1 * q1
+    c12 = p1 * p2 + q1 * q2 - ya
+    c22 = xa * xa + ya * ya + p2 * p2 + q2 * q2
+    b0, b1, b2 = p0 * u + q0 * v, p1 * u + q1 * v, p2 * u + q2 * v
+    # Cramer's rule through the adjugate (symmetric too)
+    a00 = c11 * c22 - c12 * c12
+    a01 = c02 * c12 - c01 * c22
+    a02 = c01 * c12 - c02 * c11
+    a11 = c00 * c22 - c02 * c02
+    a12 = c01 * c02 - c00 * c12
+    a22 = c00 * c11 - c01 * c01
+    det = c00 * a00 + c01 * a01 + c02 * a02
     with np.errstate(divide="ignore", invalid="ignore"):
         return (
-            np.stack([np.einsum("ni,ni->n", r, target) for r in adjugate_rows], axis=1)
+            np.stack(
+                [
+                    a00 * b0 + a01 * b1 + a02 * b2,
+                    a01 * b0 + a11 * b1 + a12 * b2,
+                    a02 * b0 + a12 * b1 + a22 * b2,
+                ],
+                axis=1,
+            )
             / det[:, None]
         )
 
