@@ -132,6 +132,11 @@ class SfmConfig:
     k_sgm_large_jump_penalty: float = bounded(8.0, gt=0)
     """Penalty P2 for a larger disparity change (a depth edge), as a multiple of the block area (px^2);
     OpenCV documents 32. Must exceed k_sgm_small_jump_penalty (OpenCV refuses P2 <= P1)."""
+    sgm_window_ground: bool = True
+    """Matching only a window (track-guided search): the search reaches the nearest ground the pixels
+    whose rays cross the search regions see, not the ground at the image's foot, which at 0 deg
+    obliquity lies ~15 m from the camera and makes the search (and the window, widened by it) two to
+    three times larger. Only those pixels' points can fall in the regions."""
     sgm_uniqueness_percent: int = bounded(10, ge=0)
     """The best disparity's cost must beat the second best by this margin (%); OpenCV advises 5-15."""
     sgm_left_right_px: int = bounded(1, ge=1)

@@ -79,22 +79,29 @@ def sgm_correspondences(
     scale = matching_scale(K, T_world_cam_a, T_world_cam_b, config)
     rect = _stereo_rectify(K, dist, gray_a.shape[::-1], T_ba)
     stats["scale"] = scale
-    n_disparities = _disparities_to_search(rect, K, dist, T_world_cam_a, scale, config)
-    stats["disparities"] = n_disparities
     window = None
     if regions:
-        window = _region_window(regions, T_world_cam_a, rect, n_disparities / scale, scale, config)
-        if window is None:
+        box = _regions_box(regions, T_world_cam_a, rect, scale, config)
+        if box is None:
             return (
                 np.zeros((0, 2)),
                 np.zeros((0, 2)),
                 stats,
                 "the search regions lie outside the images",
             )
+        # only pixels whose rays cross the regions can give their points: the search reaches the
+        # nearest ground those pixels see, not the ground at the image's foot
+        n_disparities = _disparities_to_search(
+            rect, K, dist, T_world_cam_a, scale, config, box if config.sgm_window_ground else None
+        )
+        window = _widened(box, rect, n_disparities / scale, scale, config)
         (x0, y0), (x1, y1) = window
         stats["window_fraction"] = (x1 - x0) * (y1 - y0) / float(gray_a.size)
+    else:
+        n_disparities = _disparities_to_search(rect, K, dist, T_world_cam_a, scale, config)
+    stats["disparities"] = n_disparities
     pair = _rectify_pair(gray_a, gray_b, K, dist, rect, scale, config.sgm_block_px, window)
-    # a window already holds the columns a whole pair is padded with (_region_window)
+    # a window already holds the columns a whole pair is padded with (_widened)
     disparity = _semi_global_disparity(pair, n_disparities, config, pad=window is None)
     rows, cols, d, valid = _textured_grid(pair, disparity, config)
     stats["keypoints"] = int(d.size)
@@ -193,42 +200,49 @@ def _rectify_pair(
     return _RectifiedPair(left, right, inside_left, inside_right, rect, scale, (x0, y0))
 
 
-def _region_window(
+def _regions_box(
     regions: Sequence[SearchRegion],
     T_world_cam_a: np.ndarray,
     rect: _Rectification,
-    disparity_px: float,
     scale: float,
     config: SfmConfig,
-) -> tuple[tuple[int, int], tuple[int, int]] | None:
-    """The window of the full-size rectified images to match for the regions: ((x0, y0), (x1, y1)), or
-    None when the regions lie outside the images.
-
-    It holds every region's outline as both images see it (rectified rows agree), a margin of matching
-    blocks (``WINDOW_MARGIN_*_BLOCKS``), and, towards where partners lie (lower coordinates along the baseline), the
-    disparity search: a pixel of the window then has its partner inside it, as a pixel of the whole pair
-    has, so a nearer surface in the band is matched, not mistaken for one at the region's depth. Corners
-    fall on the grid of matched pixels, so a window's pixels are the whole pair's.
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The box of the full-size rectified images that holds every region's outline as both images see
+    it (rectified rows agree) and a margin of matching blocks (``WINDOW_MARGIN_*_BLOCKS``): (low, high)
+    (x, y) corners, or None when the regions lie outside the images.
     """
     outline_m = np.concatenate([r.outline_m() for r in regions])
     T_cam_world = np.linalg.inv(T_world_cam_a)
     in_rect = (outline_m @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]) @ rect.R1.T
     size = np.asarray(rect.image_size, np.float64)
-    if np.all(in_rect[:, 2] > 0.0):
-        homogeneous = np.c_[in_rect, np.ones(len(in_rect))]
-        pixels = np.concatenate([_projected(homogeneous, P) for P in (rect.P1, rect.P2)])
-        margin_px = np.full(2, WINDOW_MARGIN_ALONG_BLOCKS * config.sgm_block_px / scale)
-        margin_px[1 - rect.baseline_axis] = (
-            WINDOW_MARGIN_ACROSS_BLOCKS * config.sgm_block_px / scale
-        )
-        low, high = pixels.min(axis=0) - margin_px, pixels.max(axis=0) + margin_px
-        if np.any(high <= 0.0) or np.any(low >= size):
-            return None
-        low, high = np.maximum(low, 0.0), np.minimum(high, size)
-    else:  # a region reaches behind the camera: the whole pair
-        low, high = np.zeros(2), size
-    axis = rect.baseline_axis
-    low[axis] -= disparity_px
+    if not np.all(in_rect[:, 2] > 0.0):  # a region reaches behind the camera: the whole pair
+        return np.zeros(2), size
+    homogeneous = np.c_[in_rect, np.ones(len(in_rect))]
+    pixels = np.concatenate([_projected(homogeneous, P) for P in (rect.P1, rect.P2)])
+    margin_px = np.full(2, WINDOW_MARGIN_ALONG_BLOCKS * config.sgm_block_px / scale)
+    margin_px[1 - rect.baseline_axis] = WINDOW_MARGIN_ACROSS_BLOCKS * config.sgm_block_px / scale
+    low, high = pixels.min(axis=0) - margin_px, pixels.max(axis=0) + margin_px
+    if np.any(high <= 0.0) or np.any(low >= size):
+        return None
+    return np.maximum(low, 0.0), np.minimum(high, size)
+
+
+def _widened(
+    box: tuple[np.ndarray, np.ndarray],
+    rect: _Rectification,
+    disparity_px: float,
+    scale: float,
+    config: SfmConfig,
+) -> tuple[tuple[int, int], tuple[int, int]]:
+    """The window of the full-size rectified images to match for a regions' box: ((x0, y0), (x1, y1)).
+
+    Towards where partners lie (lower coordinates along the baseline) it also holds the disparity
+    search: a pixel of the box then has its partner inside the window, as a pixel of the whole pair
+    has, so a nearer surface in the band is matched, not mistaken for one at the region's depth.
+    Corners fall on the grid of matched pixels, so a window's pixels are the whole pair's.
+    """
+    low, high = box[0].copy(), box[1].copy()
+    low[rect.baseline_axis] -= disparity_px
     align = max(1, round(config.sgm_step_px / scale))
     x0, y0 = (int(np.floor(v / align)) * align for v in low)
     x1, y1 = (int(np.ceil(v / align)) * align for v in high)
@@ -248,14 +262,21 @@ def _disparities_to_search(
     T_world_cam_a: np.ndarray,
     scale: float,
     config: SfmConfig,
+    box: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> int:
-    """How many disparities the matcher searches at the matching scale: a multiple of 16."""
+    """How many disparities the matcher searches at the matching scale: a multiple of 16. With a
+    box ((x, y) corners in the full-size rectified images), the ground its pixels see sets it, not the
+    whole image's.
+    """
     # A pixel whose true disparity lies beyond the search is not left unmatched but matched wrongly, too
     # far: at 0 deg obliquity the near ground then sinks metres below the target. So the search also
     # reaches the nearest flat ground the image sees; no disparity exceeds the image's width.
-    ground_px = ground_disparity_px(
-        K, dist, T_world_cam_a, rect.R1, rect.P2, rect.image_size, config.ground_z_m
-    )
+    if box is None:
+        ground_px = ground_disparity_px(
+            K, dist, T_world_cam_a, rect.R1, rect.P2, rect.image_size, config.ground_z_m
+        )
+    else:
+        ground_px = _box_ground_disparity_px(box, rect, T_world_cam_a, config.ground_z_m)
     search_px = max(float(config.sgm_disparities_px), config.sgm_ground_margin * ground_px)
     width_px = (
         rect.image_size[rect.baseline_axis] * scale
@@ -394,6 +415,29 @@ def ground_disparity_px(
     focal_baseline_px = float(np.abs(P2[:2, 3]).max())
     in_front = depth_rect > 0.0
     return float((focal_baseline_px / depth_rect[in_front]).max()) if in_front.any() else 0.0
+
+
+def _box_ground_disparity_px(
+    box: tuple[np.ndarray, np.ndarray],
+    rect: _Rectification,
+    T_world_cam_a: np.ndarray,
+    ground_z_m: float,
+) -> float:
+    """The largest disparity, in full-size rectified pixels, of the flat ground z = ``ground_z_m``
+    that camera a's rectified pixels in the box see; 0 when they see none. As ``ground_disparity_px``:
+    the inverse depth of a plane is affine in the rectified pixel, so the largest lies at a corner.
+    """
+    (x0, y0), (x1, y1) = box
+    corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], np.float64)
+    P1 = rect.P1
+    rays_rect = np.c_[(corners - P1[:2, 2]) / np.diag(P1)[:2], np.ones(4)]  # rectified z = 1
+    rays_world_z = (rays_rect @ rect.R1) @ T_world_cam_a[2, :3]
+    height_m = T_world_cam_a[2, 3] - ground_z_m
+    down = rays_world_z < 0.0
+    if height_m <= 0.0 or not down.any():
+        return 0.0
+    depth_rect = height_m / -rays_world_z[down]  # the rectified ray's z is 1
+    return float(np.abs(rect.P2[:2, 3]).max() / depth_rect.min())
 
 
 def _local_std(gray: np.ndarray, block: int) -> np.ndarray:

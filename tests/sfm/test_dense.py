@@ -226,3 +226,30 @@ def test_a_search_region_outside_the_images_gives_an_empty_cloud_with_the_reason
     cloud = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM, regions=[far])
     assert len(cloud) == 0
     assert "outside the images" in cloud.reason
+
+
+def test_a_window_searches_as_far_as_the_ground_its_region_sees(plane_scene) -> None:
+    # the camera of the nearest-ground test: the image's foot sees the ground at ~13 m, the region
+    # around the point it looks at ~20 m away, so the window needs a shorter search than the pair
+    distance_m = 20.0
+    centre_a = np.array([0.0, -distance_m * np.cos(0.436), distance_m * np.sin(0.436)])
+    T_a = look_at(centre_a, np.zeros(3))
+    T_b = look_at(centre_a + [0.075 * distance_m, 0.0, 0.0], np.zeros(3))
+    img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
+    short = replace(SGM, sgm_disparities_px=16)
+    region = SearchRegion(np.zeros(2), 1.5, -0.5, 1.0)
+    whole = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, short)
+    band = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, short, regions=[region])
+    assert band.stats["disparities"] < whole.stats["disparities"]
+    heights = {}
+    for name, cloud in (("whole", whole), ("band", band)):
+        inside = cloud.points_world_m[points_in_regions(cloud.points_world_m, [region])]
+        heights[name] = np.abs(inside[:, 2])  # above or below the plane, metres
+    assert len(heights["band"]) > 0.9 * len(heights["whole"]) > 100
+    # on the plane as closely as the whole pair's
+    assert np.median(heights["band"]) < 1.2 * np.median(heights["whole"]), heights
+    assert np.mean(heights["band"] < 0.1) > 0.95
+    # without the rule the window searches what the whole pair does
+    image_ground = replace(short, sgm_window_ground=False)
+    band_ = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, image_ground, regions=[region])
+    assert band_.stats["disparities"] == whole.stats["disparities"]
