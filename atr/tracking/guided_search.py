@@ -6,10 +6,11 @@ between two whole-cloud searches only confirm: the cloud is cut to a vertical cy
 track, and the templates of the classes held at each track's place (``tracking.guided_place_classes``)
 are laid at its fused pose and refined by ICP (``atr.recognition.verify_places``), with no description,
 matching, grouping or RANSAC; acceptance and the place competition are the whole search's, so a place
-still goes to the template that explains it best among those a whole search gave it to. The whole cloud is searched every ``tracking.full_search_every``-th scene and whenever no track is
-held, so a target that appears, or one a false track hid, is found there (``SearchSchedule``). The
-dense SfM step of a guided scene matches only the image window that holds the cylinders
-(``tracking.guided_sfm``, ``atr.sfm.dense``).
+still goes to the template that explains it best among those a whole search gave it to. The whole cloud
+is searched every ``tracking.full_search_every``-th scene and whenever no track is held, so a target that
+appears, or one a false track hid, is found there (``SearchSchedule``). The dense SfM step of a guided
+scene matches only the image window that holds the cylinders (``tracking.guided_sfm``,
+``atr.sfm.dense``).
 
 The cylinder's radius is ``tracking.k_search_radius`` x the largest template's footprint (its length +
 width), and never less than a template reaches from its origin: a vehicle standing at the track's place
