@@ -405,6 +405,19 @@ def ground_disparity_px(
     corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], np.float64)
     normalised = cv2.undistortPoints(corners.reshape(-1, 1, 2), K, dist_coeffs).reshape(-1, 2)
     rays_cam = np.c_[normalised, np.ones(4)]  # camera z = 1
+    return _largest_ground_disparity_px(rays_cam, T_world_cam_a, R1, P2, ground_z_m)
+
+
+def _largest_ground_disparity_px(
+    rays_cam: np.ndarray,
+    T_world_cam_a: np.ndarray,
+    R1: np.ndarray,
+    P2: np.ndarray,
+    ground_z_m: float,
+) -> float:
+    """The largest disparity, in full-size rectified pixels, at which rays (N, 3) of camera a (its
+    frame) meet the ground z = ``ground_z_m``; 0 when none does in front of the camera.
+    """
     rays_world_z = rays_cam @ T_world_cam_a[2, :3]
     height_m = T_world_cam_a[2, 3] - ground_z_m
     down = rays_world_z < 0.0
@@ -431,13 +444,8 @@ def _box_ground_disparity_px(
     corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], np.float64)
     P1 = rect.P1
     rays_rect = np.c_[(corners - P1[:2, 2]) / np.diag(P1)[:2], np.ones(4)]  # rectified z = 1
-    rays_world_z = (rays_rect @ rect.R1) @ T_world_cam_a[2, :3]
-    height_m = T_world_cam_a[2, 3] - ground_z_m
-    down = rays_world_z < 0.0
-    if height_m <= 0.0 or not down.any():
-        return 0.0
-    depth_rect = height_m / -rays_world_z[down]  # the rectified ray's z is 1
-    return float(np.abs(rect.P2[:2, 3]).max() / depth_rect.min())
+    rays_cam = rays_rect @ rect.R1  # into camera a's frame (R1 turns camera a's into the rectified)
+    return _largest_ground_disparity_px(rays_cam, T_world_cam_a, rect.R1, rect.P2, ground_z_m)
 
 
 def _local_std(gray: np.ndarray, block: int) -> np.ndarray:
