@@ -137,6 +137,12 @@ class SfmConfig:
     whose rays cross the search regions see, not the ground at the image's foot, which at 0 deg
     obliquity lies ~15 m from the camera and makes the search (and the window, widened by it) two to
     three times larger. Only those pixels' points can fall in the regions."""
+    sgm_region_bands: bool = True
+    """Matching only where the search looks (track-guided search): each region is matched in its own
+    window, searching only the disparities of its outline and of the ground that window sees (a band),
+    instead of one window that holds every region, searched from infinity to the nearest ground. With
+    a target's look-alikes held too, the one window covers most of the image (0.86 of it on the M113's
+    tuning flights) and searches 192 disparities at half size; a band at 30 deg obliquity 32-64."""
     sgm_uniqueness_percent: int = bounded(10, ge=0)
     """The best disparity's cost must beat the second best by this margin (%); OpenCV advises 5-15."""
     sgm_left_right_px: int = bounded(1, ge=1)

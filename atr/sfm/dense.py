@@ -29,6 +29,14 @@ from atr.sfm.triangulation import fixation_depth_m, relative_camera_pose
 # search looks").
 WINDOW_MARGIN_ALONG_BLOCKS = 2.0
 WINDOW_MARGIN_ACROSS_BLOCKS = 8.0
+# A region's band of disparities reaches this many matching blocks beyond those its outline spans, so a
+# surface in the region (and its noise) lies inside the band, clear of its ends where a disparity that
+# truly lies beyond the band is clipped to.
+BAND_MARGIN_BLOCKS = 1.0
+
+_Window = tuple[
+    tuple[int, int], tuple[int, int]
+]  # ((x0, y0), (x1, y1)) of a full-size rectified image
 
 
 def sgm_correspondences(
@@ -80,6 +88,10 @@ def sgm_correspondences(
     rect = _stereo_rectify(K, dist, gray_a.shape[::-1], T_ba)
     stats["scale"] = scale
     window = None
+    if regions and config.sgm_region_bands:
+        bands = _region_bands(regions, T_world_cam_a, rect, scale, config)
+        if bands is not None:
+            return _band_correspondences(gray_a, gray_b, K, dist, rect, scale, config, bands, stats)
     if regions:
         box = _regions_box(regions, T_world_cam_a, rect, scale, config)
         if box is None:
@@ -100,7 +112,8 @@ def sgm_correspondences(
     else:
         n_disparities = _disparities_to_search(rect, K, dist, T_world_cam_a, scale, config)
     stats["disparities"] = n_disparities
-    pair = _rectify_pair(gray_a, gray_b, K, dist, rect, scale, config.sgm_block_px, window)
+    windows = None if window is None else (window, window)
+    pair = _rectify_pair(gray_a, gray_b, K, dist, rect, scale, config.sgm_block_px, windows)
     # a window already holds the columns a whole pair is padded with (_widened)
     disparity = _semi_global_disparity(pair, n_disparities, config, pad=window is None)
     rows, cols, d, valid = _textured_grid(pair, disparity, config)
@@ -147,7 +160,9 @@ class _RectifiedPair:
         inside_left, inside_right: where each holds image content (not the rectification's border).
         rect: the rectification.
         scale: the matching scale.
-        origin_px: (x, y) of the matched window's corner in the full-size rectified images, pixels.
+        origin_left_px, origin_right_px: (x, y) of each matched window's corner in the full-size
+            rectified images, pixels: the same window of both images, or a region's band (the right
+            window shifted by the band's lowest disparity).
 
     """
 
@@ -157,7 +172,8 @@ class _RectifiedPair:
     inside_right: np.ndarray
     rect: _Rectification
     scale: float
-    origin_px: tuple[int, int]
+    origin_left_px: tuple[int, int]
+    origin_right_px: tuple[int, int]
 
 
 def _stereo_rectify(
@@ -183,21 +199,30 @@ def _rectify_pair(
     rect: _Rectification,
     scale: float,
     block: int,
-    window: tuple[tuple[int, int], tuple[int, int]] | None = None,
+    windows: tuple[_Window, _Window] | None = None,
 ) -> _RectifiedPair:
-    """Rectify both images, or their window ((x0, y0), (x1, y1) of the full-size rectified images), and
-    put them in the matcher's order and orientation.
+    """Rectify both images, or a window of each ((x0, y0), (x1, y1) of the full-size rectified images
+    a and b), and put them in the matcher's order and orientation.
     """
     w, h = rect.image_size
-    (x0, y0), (x1, y1) = window or ((0, 0), (w, h))
-    rect_a, inside_a = _rectify(gray_a, K, dist, rect.R1, rect.P1, scale, block, (x0, y0, x1, y1))
-    rect_b, inside_b = _rectify(gray_b, K, dist, rect.R2, rect.P2, scale, block, (x0, y0, x1, y1))
+    whole = ((0, 0), (w, h))
+    window_a, window_b = windows or (whole, whole)
+    (xa0, ya0), (xa1, ya1) = window_a
+    (xb0, yb0), (xb1, yb1) = window_b
+    rect_a, inside_a = _rectify(
+        gray_a, K, dist, rect.R1, rect.P1, scale, block, (xa0, ya0, xa1, ya1)
+    )
+    rect_b, inside_b = _rectify(
+        gray_b, K, dist, rect.R2, rect.P2, scale, block, (xb0, yb0, xb1, yb1)
+    )
     if rect.vertical:
         rect_a, rect_b = rect_a.T.copy(), rect_b.T.copy()
         inside_a, inside_b = inside_a.T.copy(), inside_b.T.copy()
-    left, right = (rect_b, rect_a) if rect.b_is_left else (rect_a, rect_b)
-    inside_left, inside_right = (inside_b, inside_a) if rect.b_is_left else (inside_a, inside_b)
-    return _RectifiedPair(left, right, inside_left, inside_right, rect, scale, (x0, y0))
+    if rect.b_is_left:
+        return _RectifiedPair(
+            rect_b, rect_a, inside_b, inside_a, rect, scale, window_b[0], window_a[0]
+        )
+    return _RectifiedPair(rect_a, rect_b, inside_a, inside_b, rect, scale, window_a[0], window_b[0])
 
 
 def _regions_box(
@@ -247,6 +272,155 @@ def _widened(
     x0, y0 = (int(np.floor(v / align)) * align for v in low)
     x1, y1 = (int(np.ceil(v / align)) * align for v in high)
     return (x0, y0), (x1, y1)
+
+
+@dataclass(frozen=True)
+class _Band:
+    """A region's window of the matcher's left image and the disparities its outline spans, in full-size
+    rectified pixels of the matcher's orientation: ``u`` along the baseline, ``v`` across it; the window's
+    corners on the grid of matched pixels.
+    """
+
+    u: tuple[int, int]
+    v: tuple[int, int]
+    disparity_px: tuple[float, float]
+
+    def overlaps(self, other: _Band) -> bool:
+        """Whether the two windows share a pixel."""
+        return (
+            self.u[0] < other.u[1]
+            and other.u[0] < self.u[1]
+            and self.v[0] < other.v[1]
+            and other.v[0] < self.v[1]
+        )
+
+    def merged(self, other: _Band) -> _Band:
+        """The band whose window holds both windows and whose disparities hold both bands'."""
+        return _Band(
+            (min(self.u[0], other.u[0]), max(self.u[1], other.u[1])),
+            (min(self.v[0], other.v[0]), max(self.v[1], other.v[1])),
+            (
+                min(self.disparity_px[0], other.disparity_px[0]),
+                max(self.disparity_px[1], other.disparity_px[1]),
+            ),
+        )
+
+
+def _region_bands(
+    regions: Sequence[SearchRegion],
+    T_world_cam_a: np.ndarray,
+    rect: _Rectification,
+    scale: float,
+    config: SfmConfig,
+) -> list[_Band] | None:
+    """Each region's band: the box of the matcher's left image that holds the region's outline, with a
+    margin of matching blocks (``WINDOW_MARGIN_*_BLOCKS``), and the disparities between the outline's
+    pixels in the two images. Overlapping windows are merged, so no pixel is matched twice; regions
+    outside the left image have no band. None when a region reaches behind the camera.
+    """
+    T_cam_world = np.linalg.inv(T_world_cam_a)
+    axis = rect.baseline_axis
+    size = np.asarray(rect.image_size, np.float64)
+    margin_px = np.full(2, WINDOW_MARGIN_ACROSS_BLOCKS * config.sgm_block_px / scale)
+    margin_px[axis] = WINDOW_MARGIN_ALONG_BLOCKS * config.sgm_block_px / scale
+    align = max(1, round(config.sgm_step_px / scale))
+    bands: list[_Band] = []
+    for region in regions:
+        in_rect = (region.outline_m() @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]) @ rect.R1.T
+        if not np.all(in_rect[:, 2] > 0.0):
+            return None
+        homogeneous = np.c_[in_rect, np.ones(len(in_rect))]
+        pixels_a, pixels_b = _projected(homogeneous, rect.P1), _projected(homogeneous, rect.P2)
+        left, right = (pixels_b, pixels_a) if rect.b_is_left else (pixels_a, pixels_b)
+        disparity_px = left[:, axis] - right[:, axis]
+        low = np.maximum(left.min(axis=0) - margin_px, 0.0)
+        high = np.minimum(left.max(axis=0) + margin_px, size)
+        if np.any(high <= low):
+            continue
+        u0, v0 = (int(np.floor(x / align)) * align for x in (low[axis], low[1 - axis]))
+        u1, v1 = (int(np.ceil(x / align)) * align for x in (high[axis], high[1 - axis]))
+        # The window sees more than the region: through its upper part what lies beyond it (at 0 deg
+        # obliquity ground far behind, or none), below it the ground before it. The band reaches the
+        # farthest and the nearest ground the window sees, so that is matched where it lies, not
+        # mistaken for a surface in the region, nor pulling the region's disparities with it.
+        corners_uv = np.array([[u0, v0], [u1, v0], [u0, v1], [u1, v1]], np.float64)
+        corners_xy = corners_uv if axis == 0 else corners_uv[:, ::-1]
+        ground_z_m, ground_margin = config.ground_z_m, config.sgm_ground_margin
+        farthest_px = _farthest_ground_disparity_px(corners_xy, rect, T_world_cam_a, ground_z_m)
+        box_xy = (corners_xy.min(axis=0), corners_xy.max(axis=0))
+        nearest_px = _box_ground_disparity_px(box_xy, rect, T_world_cam_a, ground_z_m)
+        band = _Band(
+            (u0, u1),
+            (v0, v1),
+            (
+                min(float(disparity_px.min()), farthest_px / ground_margin),
+                max(float(disparity_px.max()), nearest_px * ground_margin),
+            ),
+        )
+        # merge with every band it overlaps, and again with what the merged band now overlaps
+        while overlapping := [b for b in bands if b.overlaps(band)]:
+            for b in overlapping:
+                bands.remove(b)
+                band = band.merged(b)
+        bands.append(band)
+    return bands
+
+
+def _band_correspondences(
+    gray_a: np.ndarray,
+    gray_b: np.ndarray,
+    K: np.ndarray,
+    dist: np.ndarray,
+    rect: _Rectification,
+    scale: float,
+    config: SfmConfig,
+    bands: Sequence[_Band],
+    stats: dict[str, int | float],
+) -> tuple[np.ndarray, np.ndarray, dict[str, int | float], str]:
+    """``sgm_correspondences`` on each band alone: its window of the left image, and of the right image
+    the window shifted by the band's lowest disparity, so semi-global matching searches only the band's
+    disparities (``sfm.sgm_region_bands``). A disparity at the band's top end is clipped, not measured
+    (the surface lies nearer than the region), and is dropped.
+    """
+    if not bands:
+        return (
+            np.zeros((0, 2)),
+            np.zeros((0, 2)),
+            stats,
+            "the search regions lie outside the images",
+        )
+    axis = rect.baseline_axis
+    align = max(1, round(config.sgm_step_px / scale))
+    margin_px = BAND_MARGIN_BLOCKS * config.sgm_block_px  # at the matching scale
+    found_a, found_b = [], []
+    stats.update(keypoints=0, tracked=0, disparities=0, window_fraction=0.0, bands=len(bands))
+    for band in bands:
+        low_px, high_px = band.disparity_px
+        n_disparities = int(np.ceil(((high_px - low_px) * scale + 2 * margin_px) / 16.0)) * 16
+        # the band centred on the outline's disparities, its lowest on the grid of matched pixels
+        base_px = low_px - 0.5 * (n_disparities / scale - (high_px - low_px))
+        base_px = int(np.floor(base_px / align)) * align
+        # the left window reaches as many columns further back as the matcher leaves unmatched
+        pad_px = int(np.ceil(n_disparities / scale / align)) * align
+        (u0, u1), (v0, v1) = band.u, band.v
+        windows_uv = (
+            ((u0 - pad_px, v0), (u1, v1)),
+            ((u0 - pad_px - base_px, v0), (u1 - base_px, v1)),
+        )
+        left, right = (w if axis == 0 else (w[0][::-1], w[1][::-1]) for w in windows_uv)
+        windows = (right, left) if rect.b_is_left else (left, right)
+        pair = _rectify_pair(gray_a, gray_b, K, dist, rect, scale, config.sgm_block_px, windows)
+        disparity = _semi_global_disparity(pair, n_disparities, config, pad=False)
+        rows, cols, d, valid = _textured_grid(pair, disparity, config)
+        valid &= (d >= 1.0) & (d < n_disparities - 1)
+        pixels_a, pixels_b = _original_pixels(pair, rows[valid], cols[valid], d[valid], K)
+        found_a.append(pixels_a)
+        found_b.append(pixels_b)
+        stats["keypoints"] += int(d.size)
+        stats["tracked"] += int(np.count_nonzero(valid))
+        stats["disparities"] = max(int(stats["disparities"]), n_disparities)
+        stats["window_fraction"] += (u1 - u0 + pad_px) * (v1 - v0) / float(gray_a.size)
+    return np.concatenate(found_a), np.concatenate(found_b), stats, ""
 
 
 def _projected(homogeneous: np.ndarray, P: np.ndarray) -> np.ndarray:
@@ -349,8 +523,9 @@ def _original_pixels(
     rect = pair.rect
     if rect.vertical:
         in_left, in_right = in_left[:, ::-1], in_right[:, ::-1]
-    origin = np.asarray(pair.origin_px, np.float64)  # the window's corner in the rectified images
-    in_left, in_right = in_left + origin, in_right + origin
+    # each window's corner in the rectified images
+    in_left = in_left + np.asarray(pair.origin_left_px, np.float64)
+    in_right = in_right + np.asarray(pair.origin_right_px, np.float64)
     rect_pixels_a, rect_pixels_b = (in_right, in_left) if rect.b_is_left else (in_left, in_right)
     return (
         _unrectify(rect_pixels_a, K, rect.R1, rect.P1),
@@ -446,6 +621,24 @@ def _box_ground_disparity_px(
     rays_rect = np.c_[(corners - P1[:2, 2]) / np.diag(P1)[:2], np.ones(4)]  # rectified z = 1
     rays_cam = rays_rect @ rect.R1  # into camera a's frame (R1 turns camera a's into the rectified)
     return _largest_ground_disparity_px(rays_cam, T_world_cam_a, rect.R1, rect.P2, ground_z_m)
+
+
+def _farthest_ground_disparity_px(
+    corners_px: np.ndarray, rect: _Rectification, T_world_cam_a: np.ndarray, ground_z_m: float
+) -> float:
+    """The smallest disparity, in full-size rectified pixels, of the flat ground z = ``ground_z_m`` that
+    rectified pixels within the corners (4, 2) see; 0 when some see none (the horizon is in the box).
+    The plane's disparity is affine in the rectified pixel, so the smallest lies at a corner.
+    """
+    P1 = rect.P1
+    rays_rect = np.c_[(corners_px - P1[:2, 2]) / np.diag(P1)[:2], np.ones(len(corners_px))]
+    rays_world_z = rays_rect @ rect.R1 @ T_world_cam_a[2, :3]  # rectified z = 1
+    height_m = T_world_cam_a[2, 3] - ground_z_m
+    if height_m <= 0.0:
+        return 0.0
+    # disparity = f * baseline / depth, and the ray meets the ground at depth height / -rays_world_z
+    focal_baseline_px = float(np.abs(rect.P2[:2, 3]).max())
+    return max(0.0, float((focal_baseline_px * -rays_world_z / height_m).min()))
 
 
 def _local_std(gray: np.ndarray, block: int) -> np.ndarray:

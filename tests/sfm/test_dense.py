@@ -236,7 +236,7 @@ def test_a_window_searches_as_far_as_the_ground_its_region_sees(plane_scene) -> 
     T_a = look_at(centre_a, np.zeros(3))
     T_b = look_at(centre_a + [0.075 * distance_m, 0.0, 0.0], np.zeros(3))
     img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
-    short = replace(SGM, sgm_disparities_px=16)
+    short = replace(SGM, sgm_disparities_px=16, sgm_region_bands=False)
     region = SearchRegion(np.zeros(2), 1.5, -0.5, 1.0)
     whole = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, short)
     band = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, short, regions=[region])
@@ -253,3 +253,44 @@ def test_a_window_searches_as_far_as_the_ground_its_region_sees(plane_scene) -> 
     image_ground = replace(short, sgm_window_ground=False)
     band_ = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, image_ground, regions=[region])
     assert band_.stats["disparities"] == whole.stats["disparities"]
+
+
+def test_each_region_is_matched_in_its_own_band_of_disparities(geo, plane_scene) -> None:
+    T_a, T_b = moved_pair(geo, "oblique")
+    img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
+    centre = _where_the_axis_meets_the_plane(T_a)
+    # two regions well apart: one window would hold both and the ground between them
+    regions = [SearchRegion(centre + offset, 3.0, -0.5, 1.0) for offset in ([-9.0, 0], [9.0, 0])]
+    whole = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM)
+    one_window = replace(SGM, sgm_region_bands=False)
+    window = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, one_window, regions=regions)
+    bands = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM, regions=regions)
+    assert bands.reason == ""
+    assert bands.stats["bands"] == 2
+    assert bands.stats["window_fraction"] < 0.6 * window.stats["window_fraction"]
+    assert bands.stats["disparities"] < 0.5 * window.stats["disparities"]
+    for region in regions:
+        inside_whole = whole.points_world_m[points_in_regions(whole.points_world_m, [region])]
+        inside = bands.points_world_m[points_in_regions(bands.points_world_m, [region])]
+        assert len(inside_whole) > 100
+        # the region's points are the whole pair's, each matched once
+        gap_m, _ = cKDTree(inside_whole).query(inside)
+        missed_m, _ = cKDTree(inside).query(inside_whole)
+        assert np.mean(gap_m < 0.01) > 0.95
+        assert np.mean(missed_m < 0.01) > 0.95
+        assert len(np.unique(inside.round(6), axis=0)) == len(inside)
+
+
+@pytest.mark.parametrize("motion", ["right", "down the image", "oblique"])
+def test_a_band_reaches_the_ground_its_window_sees_beyond_the_region(
+    geo, plane_scene, motion: str
+) -> None:
+    # a region 20 m above the plane: every ray through it sees the ground behind it, beyond the
+    # disparities of the region's own outline
+    T_a, T_b = moved_pair(geo, motion)
+    img_a, img_b = plane_scene.render(T_a), plane_scene.render(T_b)
+    region = SearchRegion(_where_the_axis_meets_the_plane(T_a), 4.0, 18.0, 22.0)
+    cloud = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM, regions=[region])
+    assert len(cloud) > 1000
+    # the ground is matched where it lies, not mistaken for a surface in the band
+    assert np.mean(np.abs(cloud.points_world_m[:, 2]) < 1.0) > 0.99
