@@ -78,10 +78,15 @@ class TrackingConfig:
             templates of the classes whose tracks stand at that place (a whole search gave it to
             them), not every template: among a family of eleven most of a guided scene is ICP of
             templates no whole search put there.
+        guided_class_cylinders: with guided_place_classes, a held track's search cylinder is sized
+            by the classes held at its place, not by the largest template: only they are laid there,
+            and the image windows the SfM step matches shrink with the cylinders (a car's is a third
+            of a main battle tank's).
         full_search_every: with guided_search, every this-many-th scene searches the whole cloud.
-        k_search_radius: a held track's search cylinder's radius / the largest template's footprint
-            (length + width): a vehicle at the track's place is inside at any heading (its half-diagonal
-            is under half the footprint) with ground around it. Chosen on tuning seeds 101-102 (T-72):
+        k_search_radius: a held track's search cylinder's radius / the largest footprint (length +
+            width) of the templates laid at its place (guided_class_cylinders; else of every template):
+            a vehicle at the track's place is inside at any heading (its half-diagonal is under half
+            the footprint) with ground around it. Chosen on tuning seeds 101-102 (T-72):
             0.6 gave the same pooled F1 as 1.0 (0.928) at 1.12-1.16 x the reference workload per scene
             against 1.61-1.70 x, its window in the images being smaller (docs/tracking.md).
 
@@ -107,6 +112,7 @@ class TrackingConfig:
     guided_search: bool = False
     guided_sfm: bool = True
     guided_place_classes: bool = True
+    guided_class_cylinders: bool = True
     full_search_every: int = bounded(4, ge=1)
     k_search_radius: float = bounded(0.6, gt=0)
 

@@ -9,15 +9,16 @@ matching, grouping or RANSAC; acceptance and the place competition are the whole
 still goes to the template that explains it best among those a whole search gave it to. The whole cloud
 is searched every ``tracking.full_search_every``-th scene and whenever no track is held, so a target that
 appears, or one a false track hid, is found there (``SearchSchedule``). The dense SfM step of a guided
-scene matches only the image window that holds the cylinders (``tracking.guided_sfm``,
-``atr.sfm.dense``).
+scene matches only the cylinders' image windows, each in its own band of disparities
+(``tracking.guided_sfm``, ``atr.sfm.dense``).
 
-The cylinder's radius is ``tracking.k_search_radius`` x the largest template's footprint (its length +
-width), and never less than a template reaches from its origin: a vehicle standing at the track's place
-is inside it at any heading, and so is some ground around it, which ground removal needs. The tracker is the tracker service's own object (``atr.tracking.Tracker``)
-fed with the matcher's detections, so the guidance is deterministic: the same clouds in the same order
-give the same searches. A restarted matcher starts with no track and searches whole clouds until it holds
-one again.
+The cylinder's radius is ``tracking.k_search_radius`` x the largest footprint (length + width) of the
+templates laid at the track's place (``tracking.guided_class_cylinders``), and never less than they
+reach from their origin: a vehicle standing at the track's place is inside it at any heading, and so is
+some ground around it, which ground removal needs. The tracker is the tracker service's own object
+(``atr.tracking.Tracker``) fed with the matcher's detections, so the guidance is deterministic: the
+same clouds in the same order give the same searches. A restarted matcher starts with no track and
+searches whole clouds until it holds one again.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from atr.recognition import (
 from atr.recognition.attention import largest_footprint_m
 from atr.regions import SearchRegion, points_in_regions
 from atr.tracking.config import TrackingConfig
-from atr.tracking.tracker import Tracker, TrackInput
+from atr.tracking.tracker import Track, Tracker, TrackInput
 
 
 class SearchSchedule:
@@ -86,26 +87,33 @@ class GuidedSearch:
         self.recognition = recognition
         self.tracking = tracking
         self.tracker = Tracker(tracking)
-        footprint_m = max((largest_footprint_m(t.points_m) for t in self.templates), default=0.0)
-        # never less than a template reaches from its origin (the track's place) at any heading: a
-        # CAD model's origin need not be its footprint's centre
-        reach_m = max(
-            (
-                float(np.linalg.norm(t.points_m[:, :2], axis=1).max())
-                for t in self.templates
-                if len(t.points_m)
-            ),
-            default=0.0,
-        )
-        self.radius_m = max(tracking.k_search_radius * footprint_m, reach_m)
-        # the heights a vehicle at a track's place spans, from the track's position (the vehicle's origin)
-        heights = [t.points_m[:, 2] for t in self.templates if len(t.points_m)]
+        # each class's cylinder: its radius and the heights it spans from the track's position
+        self._cylinders: dict[str, tuple[float, float, float]] = {}
+        for t in self.templates:
+            if len(t.points_m):
+                radius_m, low_m, high_m = self._cylinder_of(t.points_m, tracking.k_search_radius)
+                if t.target in self._cylinders:
+                    r, lo, hi = self._cylinders[t.target]
+                    radius_m, low_m, high_m = max(r, radius_m), min(lo, low_m), max(hi, high_m)
+                self._cylinders[t.target] = (radius_m, low_m, high_m)
+        cylinders = list(self._cylinders.values())
+        self.radius_m = max((c[0] for c in cylinders), default=0.0)
         self.z_span_m = (
-            (min(float(h.min()) for h in heights), max(float(h.max()) for h in heights))
-            if heights
+            (min(c[1] for c in cylinders), max(c[2] for c in cylinders))
+            if cylinders
             else (0.0, 0.0)
         )
         self.schedule = SearchSchedule(tracking.full_search_every)
+
+    @staticmethod
+    def _cylinder_of(points_m: np.ndarray, k_search_radius: float) -> tuple[float, float, float]:
+        """A template's search cylinder about its origin: radius, lowest and highest height, metres.
+        The radius is never less than the template reaches from its origin (the track's place) at any
+        heading: a CAD model's origin need not be its footprint's centre.
+        """
+        reach_m = float(np.linalg.norm(points_m[:, :2], axis=1).max())
+        radius_m = max(k_search_radius * largest_footprint_m(points_m), reach_m)
+        return radius_m, float(points_m[:, 2].min()), float(points_m[:, 2].max())
 
     def regions(self) -> list[SearchRegion] | None:
         """Where the next scene is searched, or None for the whole cloud (``SearchSchedule``)."""
@@ -122,16 +130,30 @@ class GuidedSearch:
         tracks = self.tracker.tracks
         if not self.tracking.guided_search or all(t.state == "tentative" for t in tracks):
             return None
-        low, high = self.z_span_m
-        return [
-            SearchRegion(
-                t.position_m[:2].copy(),
-                self.radius_m,
-                float(t.position_m[2]) + low,
-                float(t.position_m[2]) + high,
+        regions = []
+        for track in tracks:
+            radius_m, (low, high) = self.radius_m, self.z_span_m
+            if self.tracking.guided_place_classes and self.tracking.guided_class_cylinders:
+                # only the classes held at the place are laid there: the cylinder need hold only them
+                cylinders = [
+                    self._cylinders[c] for c in self._classes_at(track) if c in self._cylinders
+                ]
+                if cylinders:
+                    radius_m = max(c[0] for c in cylinders)
+                    low, high = min(c[1] for c in cylinders), max(c[2] for c in cylinders)
+            z_m = float(track.position_m[2])
+            regions.append(
+                SearchRegion(track.position_m[:2].copy(), radius_m, z_m + low, z_m + high)
             )
-            for t in tracks
-        ]
+        return regions
+
+    def _classes_at(self, track: Track) -> frozenset[str]:
+        """The classes of the live tracks that stand at a track's place (within the search radius)."""
+        return frozenset(
+            other.target
+            for other in self.tracker.tracks
+            if np.linalg.norm(other.position_m[:2] - track.position_m[:2]) <= self.radius_m
+        )
 
     def places(self) -> tuple[list[np.ndarray], list[frozenset[str]] | None]:
         """The poses a guided scene confirms and the templates laid at each: every live track's fused
@@ -139,15 +161,10 @@ class GuidedSearch:
         all). With ``tracking.guided_place_classes`` a pose gets the templates of the classes whose
         tracks stand at its place (within the search radius of it), else every template (None).
         """
-        tracks = self.tracker.tracks
         poses, targets = [], []
-        for track in tracks:
+        for track in self.tracker.tracks:
             T = track.T_world_target
-            there = frozenset(
-                other.target
-                for other in tracks
-                if np.linalg.norm(other.position_m[:2] - track.position_m[:2]) <= self.radius_m
-            )
+            there = self._classes_at(track)
             turns = [T]
             if track.yaw_ambiguous or not np.isfinite(track.yaw_var):
                 flipped = T.copy()

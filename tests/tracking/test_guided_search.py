@@ -145,3 +145,39 @@ def test_a_guided_scene_lays_at_a_place_only_the_classes_held_there(world) -> No
         laid = {t["target"]: t["hypotheses"] for t in result.stats["templates"]}
         assert laid == ({"t72": 1, "truck6x6": 1} if per_place else {"t72": 2, "truck6x6": 2})
         assert _tank_found(result, tank_m)
+
+
+def test_a_held_track_s_cylinder_holds_the_classes_held_at_its_place(world) -> None:
+    cfg, templates, scene, tank_m = world
+    truck_m = TRUCK_SHIFT_M
+    reach_m = {t.target: float(np.linalg.norm(t.points_m[:, :2], axis=1).max()) for t in templates}
+
+    def regions(per_class: bool, truck_at: np.ndarray) -> list:
+        tracking = TrackingConfig(
+            guided_search=True, full_search_every=3, guided_class_cylinders=per_class
+        )
+        search = GuidedSearch(templates, cfg, tracking)
+        for k in (1, 2):
+            search.tracker.update(
+                [
+                    TrackInput("t72", tank_m, yaw_rad=0.7, score=0.9),
+                    TrackInput("truck6x6", truck_at, yaw_rad=0.2, score=0.8),
+                ],
+                k * SCENE_S,
+            )
+        search.schedule.searched(whole=True)
+        found = search(scene, seed=0, stamp_ns=3 * SCENE_S, viewpoint_m=VIEWPOINT)
+        assert found.stats["search"] == 2 and _tank_found(found, tank_m)
+        return search.regions() or [], search.radius_m
+
+    (tank, truck), largest_m = regions(True, truck_m)
+    # each cylinder is its own class's: never less than that template reaches, at most the largest
+    assert reach_m["t72"] <= tank.radius_m <= largest_m
+    assert reach_m["truck6x6"] <= truck.radius_m <= largest_m
+    assert tank.radius_m != pytest.approx(truck.radius_m)
+    # without the rule every cylinder is the largest template's
+    (tank_, truck_), _ = regions(False, truck_m)
+    assert tank_.radius_m == truck_.radius_m == pytest.approx(largest_m)
+    # two classes held at one place: its cylinder holds the larger of them
+    (tank2, truck2), _ = regions(True, tank_m + np.array([3.0, 0.0, 0.0]))
+    assert tank2.radius_m == truck2.radius_m == pytest.approx(max(tank.radius_m, truck.radius_m))
