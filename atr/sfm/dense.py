@@ -91,7 +91,7 @@ def sgm_correspondences(
     if regions and config.sgm_region_bands:
         bands = _region_bands(regions, T_world_cam_a, rect, scale, config)
         if bands is not None:
-            return _band_correspondences(gray_a, gray_b, K, dist, rect, scale, config, bands, stats)
+            return _band_correspondences(bands, rect, scale, gray_a, gray_b, K, dist, config, stats)
     if regions:
         box = _regions_box(regions, T_world_cam_a, rect, scale, config)
         if box is None:
@@ -367,14 +367,14 @@ def _region_bands(
 
 
 def _band_correspondences(
+    bands: Sequence[_Band],
+    rect: _Rectification,
+    scale: float,
     gray_a: np.ndarray,
     gray_b: np.ndarray,
     K: np.ndarray,
     dist: np.ndarray,
-    rect: _Rectification,
-    scale: float,
     config: SfmConfig,
-    bands: Sequence[_Band],
     stats: dict[str, int | float],
 ) -> tuple[np.ndarray, np.ndarray, dict[str, int | float], str]:
     """``sgm_correspondences`` on each band alone: its window of the left image, and of the right image

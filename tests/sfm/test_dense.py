@@ -207,14 +207,19 @@ def test_a_search_region_matches_its_window_as_the_whole_pair_does(
     band = reconstruct(img_a, img_b, plane_scene.K, T_a, T_b, SGM, regions=[region])
     assert band.reason == ""
     assert band.stats["window_fraction"] < 0.7  # the window, not the pair, was matched
+    _assert_the_region_s_points_are_the_whole_pair_s(whole, band, region)
+
+
+def _assert_the_region_s_points_are_the_whole_pair_s(whole, cloud, region: SearchRegion) -> None:
+    """The same grid pixels, matched alike (within 1 cm), each once."""
     inside_whole = whole.points_world_m[points_in_regions(whole.points_world_m, [region])]
-    inside_band = band.points_world_m[points_in_regions(band.points_world_m, [region])]
+    inside = cloud.points_world_m[points_in_regions(cloud.points_world_m, [region])]
     assert len(inside_whole) > 100
-    # the region's points are the whole pair's: the same grid pixels, matched alike
-    gap_m, _ = cKDTree(inside_whole).query(inside_band)
-    missed_m, _ = cKDTree(inside_band).query(inside_whole)
+    gap_m, _ = cKDTree(inside_whole).query(inside)
+    missed_m, _ = cKDTree(inside).query(inside_whole)
     assert np.mean(gap_m < 0.01) > 0.95
     assert np.mean(missed_m < 0.01) > 0.95
+    assert len(np.unique(inside.round(6), axis=0)) == len(inside)
 
 
 def test_a_search_region_outside_the_images_gives_an_empty_cloud_with_the_reason(
@@ -270,15 +275,7 @@ def test_each_region_is_matched_in_its_own_band_of_disparities(geo, plane_scene)
     assert bands.stats["window_fraction"] < 0.6 * window.stats["window_fraction"]
     assert bands.stats["disparities"] < 0.5 * window.stats["disparities"]
     for region in regions:
-        inside_whole = whole.points_world_m[points_in_regions(whole.points_world_m, [region])]
-        inside = bands.points_world_m[points_in_regions(bands.points_world_m, [region])]
-        assert len(inside_whole) > 100
-        # the region's points are the whole pair's, each matched once
-        gap_m, _ = cKDTree(inside_whole).query(inside)
-        missed_m, _ = cKDTree(inside).query(inside_whole)
-        assert np.mean(gap_m < 0.01) > 0.95
-        assert np.mean(missed_m < 0.01) > 0.95
-        assert len(np.unique(inside.round(6), axis=0)) == len(inside)
+        _assert_the_region_s_points_are_the_whole_pair_s(whole, bands, region)
 
 
 @pytest.mark.parametrize("motion", ["right", "down the image", "oblique"])
