@@ -141,8 +141,8 @@ class SfmConfig:
     """Matching only where the search looks (track-guided search): each region is matched in its own
     window, searching only the disparities of its outline and of the ground that window sees (a band),
     instead of one window that holds every region, searched from infinity to the nearest ground. With
-    a target's look-alikes held too, the one window covers most of the image (0.86 of it on the M113's
-    tuning flights) and searches 192 disparities at half size; a band at 30 deg obliquity 32-64."""
+    a target's look-alikes held too, the one window covered most of the image (0.86 of it on the M113's
+    tuning flights) and searched 192-288 disparities at half size (docs/sfm.md)."""
     sgm_uniqueness_percent: int = bounded(10, ge=0)
     """The best disparity's cost must beat the second best by this margin (%); OpenCV advises 5-15."""
     sgm_left_right_px: int = bounded(1, ge=1)

@@ -29,14 +29,13 @@ from atr.sfm.triangulation import fixation_depth_m, relative_camera_pose
 # search looks").
 WINDOW_MARGIN_ALONG_BLOCKS = 2.0
 WINDOW_MARGIN_ACROSS_BLOCKS = 8.0
-# A region's band of disparities reaches this many matching blocks beyond those its outline spans, so a
-# surface in the region (and its noise) lies inside the band, clear of its ends where a disparity that
-# truly lies beyond the band is clipped to.
+# A region's band of disparities reaches this many matching blocks beyond those of its outline and its
+# ground, so a surface in the region (and its noise) lies inside the band, clear of its ends, where a
+# disparity that truly lies beyond the band is clipped to.
 BAND_MARGIN_BLOCKS = 1.0
 
-_Window = tuple[
-    tuple[int, int], tuple[int, int]
-]  # ((x0, y0), (x1, y1)) of a full-size rectified image
+# ((x0, y0), (x1, y1)) of a full-size rectified image
+_Window = tuple[tuple[int, int], tuple[int, int]]
 
 
 def sgm_correspondences(
@@ -314,8 +313,8 @@ def _region_bands(
     config: SfmConfig,
 ) -> list[_Band] | None:
     """Each region's band: the box of the matcher's left image that holds the region's outline, with a
-    margin of matching blocks (``WINDOW_MARGIN_*_BLOCKS``), and the disparities between the outline's
-    pixels in the two images. Overlapping windows are merged, so no pixel is matched twice; regions
+    margin of matching blocks (``WINDOW_MARGIN_*_BLOCKS``), and the disparities of the outline and of
+    the flat ground the box sees. Overlapping windows are merged, so no pixel is matched twice; regions
     outside the left image have no band. None when a region reaches behind the camera.
     """
     T_cam_world = np.linalg.inv(T_world_cam_a)
@@ -379,8 +378,8 @@ def _band_correspondences(
 ) -> tuple[np.ndarray, np.ndarray, dict[str, int | float], str]:
     """``sgm_correspondences`` on each band alone: its window of the left image, and of the right image
     the window shifted by the band's lowest disparity, so semi-global matching searches only the band's
-    disparities (``sfm.sgm_region_bands``). A disparity at the band's top end is clipped, not measured
-    (the surface lies nearer than the region), and is dropped.
+    disparities (``sfm.sgm_region_bands``). A disparity at either end of the band is clipped, not
+    measured (the surface lies nearer or farther than the band reaches), and is dropped.
     """
     if not bands:
         return (
@@ -397,7 +396,7 @@ def _band_correspondences(
     for band in bands:
         low_px, high_px = band.disparity_px
         n_disparities = int(np.ceil(((high_px - low_px) * scale + 2 * margin_px) / 16.0)) * 16
-        # the band centred on the outline's disparities, its lowest on the grid of matched pixels
+        # the band centred on its disparities, its lowest on the grid of matched pixels
         base_px = low_px - 0.5 * (n_disparities / scale - (high_px - low_px))
         base_px = int(np.floor(base_px / align)) * align
         # the left window reaches as many columns further back as the matcher leaves unmatched
