@@ -34,6 +34,8 @@ WINDOW_MARGIN_ACROSS_BLOCKS = 8.0
 # disparity that truly lies beyond the band is clipped to.
 BAND_MARGIN_BLOCKS = 1.0
 
+REGIONS_OUTSIDE = "the search regions lie outside the images"
+
 # ((x0, y0), (x1, y1)) of a full-size rectified image
 _Window = tuple[tuple[int, int], tuple[int, int]]
 
@@ -94,12 +96,7 @@ def sgm_correspondences(
     if regions:
         box = _regions_box(regions, T_world_cam_a, rect, scale, config)
         if box is None:
-            return (
-                np.zeros((0, 2)),
-                np.zeros((0, 2)),
-                stats,
-                "the search regions lie outside the images",
-            )
+            return np.zeros((0, 2)), np.zeros((0, 2)), stats, REGIONS_OUTSIDE
         # only pixels whose rays cross the regions can give their points: the search reaches the
         # nearest ground those pixels see, not the ground at the image's foot
         n_disparities = _disparities_to_search(
@@ -344,10 +341,9 @@ def _region_bands(
         # mistaken for a surface in the region, nor pulling the region's disparities with it.
         corners_uv = np.array([[u0, v0], [u1, v0], [u0, v1], [u1, v1]], np.float64)
         corners_xy = corners_uv if axis == 0 else corners_uv[:, ::-1]
-        ground_z_m, ground_margin = config.ground_z_m, config.sgm_ground_margin
-        farthest_px = _farthest_ground_disparity_px(corners_xy, rect, T_world_cam_a, ground_z_m)
-        box_xy = (corners_xy.min(axis=0), corners_xy.max(axis=0))
-        nearest_px = _box_ground_disparity_px(box_xy, rect, T_world_cam_a, ground_z_m)
+        ground_px = _ground_disparities_px(corners_xy, rect, T_world_cam_a, config.ground_z_m)
+        farthest_px, nearest_px = max(0.0, ground_px.min()), max(0.0, ground_px.max())
+        ground_margin = config.sgm_ground_margin
         band = _Band(
             (u0, u1),
             (v0, v1),
@@ -382,12 +378,7 @@ def _band_correspondences(
     measured (the surface lies nearer or farther than the band reaches), and is dropped.
     """
     if not bands:
-        return (
-            np.zeros((0, 2)),
-            np.zeros((0, 2)),
-            stats,
-            "the search regions lie outside the images",
-        )
+        return np.zeros((0, 2)), np.zeros((0, 2)), stats, REGIONS_OUTSIDE
     axis = rect.baseline_axis
     align = max(1, round(config.sgm_step_px / scale))
     margin_px = BAND_MARGIN_BLOCKS * config.sgm_block_px  # at the matching scale
@@ -611,33 +602,29 @@ def _box_ground_disparity_px(
     ground_z_m: float,
 ) -> float:
     """The largest disparity, in full-size rectified pixels, of the flat ground z = ``ground_z_m``
-    that camera a's rectified pixels in the box see; 0 when they see none. As ``ground_disparity_px``:
-    the inverse depth of a plane is affine in the rectified pixel, so the largest lies at a corner.
+    that camera a's rectified pixels in the box see; 0 when they see none.
     """
     (x0, y0), (x1, y1) = box
     corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], np.float64)
-    P1 = rect.P1
-    rays_rect = np.c_[(corners - P1[:2, 2]) / np.diag(P1)[:2], np.ones(4)]  # rectified z = 1
-    rays_cam = rays_rect @ rect.R1  # into camera a's frame (R1 turns camera a's into the rectified)
-    return _largest_ground_disparity_px(rays_cam, T_world_cam_a, rect.R1, rect.P2, ground_z_m)
+    return max(0.0, float(_ground_disparities_px(corners, rect, T_world_cam_a, ground_z_m).max()))
 
 
-def _farthest_ground_disparity_px(
+def _ground_disparities_px(
     corners_px: np.ndarray, rect: _Rectification, T_world_cam_a: np.ndarray, ground_z_m: float
-) -> float:
-    """The smallest disparity, in full-size rectified pixels, of the flat ground z = ``ground_z_m`` that
-    rectified pixels within the corners (4, 2) see; 0 when some see none (the horizon is in the box).
-    The plane's disparity is affine in the rectified pixel, so the smallest lies at a corner.
+) -> np.ndarray:
+    """The disparity, in full-size rectified pixels, of the flat ground z = ``ground_z_m`` at each of
+    camera a's rectified pixels (N, 2); <= 0 where the ray does not meet it. It is affine in the
+    pixel (as ``ground_disparity_px`` uses), so over a box its least and largest lie at corners.
     """
+    height_m = T_world_cam_a[2, 3] - ground_z_m
+    if height_m <= 0.0:
+        return np.zeros(len(corners_px))
     P1 = rect.P1
     rays_rect = np.c_[(corners_px - P1[:2, 2]) / np.diag(P1)[:2], np.ones(len(corners_px))]
     rays_world_z = rays_rect @ rect.R1 @ T_world_cam_a[2, :3]  # rectified z = 1
-    height_m = T_world_cam_a[2, 3] - ground_z_m
-    if height_m <= 0.0:
-        return 0.0
     # disparity = f * baseline / depth, and the ray meets the ground at depth height / -rays_world_z
     focal_baseline_px = float(np.abs(rect.P2[:2, 3]).max())
-    return max(0.0, float((focal_baseline_px * -rays_world_z / height_m).min()))
+    return focal_baseline_px * -rays_world_z / height_m
 
 
 def _local_std(gray: np.ndarray, block: int) -> np.ndarray:
