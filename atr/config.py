@@ -7,9 +7,11 @@ constructor. This module gathers them and applies overrides written as `group.fi
     config = load_config(overrides=["sfm.matcher=surf", "recognition.descriptor=fpfh"])
 
 The SfM defaults to the arm that measures best on held-out targets: dense matching (`sfm.matcher=sgm`,
-ours; docs/evaluation). A preset is a named list of overrides, given as `preset=NAME` among them (`--preset
+ours; docs/evaluation), with the matcher confirming the targets it holds between whole searches
+(`tracking.guided_search`, ours; docs/tracking.md). A preset is a named list of overrides, given as `preset=NAME` among them (`--preset
 paper` on the command line, `preset: paper` in a YAML file); it applies where it stands, so a later
-override refines it. `preset=paper` is the paper's sparse GFTT/KLT SfM, the evaluation's `gftt-sfm` arm.
+override refines it. `preset=paper` is the paper's sparse GFTT/KLT SfM deciding each scene alone, the
+evaluation's `gftt-sfm` arm.
 """
 
 from __future__ import annotations
@@ -77,12 +79,13 @@ class AtrConfig:
 
 
 PRESETS: dict[str, tuple[str, ...]] = {
-    "dense": ("sfm.matcher=sgm",),
-    "paper": ("sfm.matcher=gftt",),
+    "dense": ("sfm.matcher=sgm", "tracking.guided_search=true"),
+    "paper": ("sfm.matcher=gftt", "tracking.guided_search=false"),
 }
 """Named override lists (`preset=NAME`). "dense": the default, semi-global matching of the pair rectified
-with the known pose (ours). "paper": the paper's sparse GFTT/KLT SfM (§II-B-1), exactly as the evaluation's
-gftt-sfm arm runs it. What that arm adds to
+with the known pose, searching whole scenes only until a target is held and then every fourth scene
+(track-guided search; ours). "paper": the paper's sparse GFTT/KLT SfM (§II-B-1) deciding each scene alone,
+exactly as the evaluation's gftt-sfm arm runs it. What that arm adds to
 the paper's text keeps its own switch (the pose-aided KLT pass: `sfm.klt_aided_pyramid_levels=0`;
 docs/sfm.md)."""
 

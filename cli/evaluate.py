@@ -53,7 +53,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--every",
         type=int,
         default=1,
-        help="only every K-th scene of each run: a sample of the whole run (default 1: all)",
+        help="only every K-th scene of each run: a sample of the whole run (default 1: all; with "
+        "track-guided search, sgm-sfm's default, the tracks see only the sampled scenes)",
     )
     add_repeatable(
         parser, "--pipeline", "gftt-sfm, surf-sfm, sgm-sfm, lidar, 2d-1..2d-4", "gftt-sfm"

@@ -130,13 +130,18 @@ def pair_descriptor(pipeline: str) -> str:
 
 
 def arm_overrides(arm: Arm) -> list[str]:
-    """The `--set` overrides that make the service graph run this arm (empty for 2D)."""
+    """The `--set` overrides that make the service graph run this arm (empty for 2D). The paper's
+    arms decide each scene alone, as the paper does; ours (sgm-sfm) runs as the configuration says
+    (track-guided search by default).
+    """
     if arm.is_2d:
         return []
     source = "lidar" if arm.pipeline == "lidar" else "sfm"
     out = [f"pipeline.cloud_source={source}", f"recognition.descriptor={arm.descriptor}"]
     if arm.pipeline in SFM_PIPELINES:
         out.append(f"sfm.matcher={SFM_PIPELINES[arm.pipeline]}")
+    if arm.pipeline != "sgm-sfm":
+        out.append("tracking.guided_search=false")
     return out
 
 

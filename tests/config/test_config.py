@@ -30,6 +30,19 @@ def test_the_default_is_the_dense_arm_and_the_paper_preset_the_gftt_arm():
 
 
 @pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_the_papers_arms_decide_each_scene_alone_and_ours_follows_the_config(preset):
+    """Track-guided search is the default's; the paper's arms (and preset=paper) decide every scene alone,
+    as the paper does, whatever the preset; the dense arm runs as the configuration says."""
+    assert AtrConfig().tracking.guided_search
+    assert not load_config(overrides=["preset=paper"]).tracking.guided_search
+    base = load_config(overrides=[f"preset={preset}"])
+    for pipeline in ("gftt-sfm", "surf-sfm", "lidar"):
+        assert not arm_config(base, Arm(pipeline, "shot")).tracking.guided_search, pipeline
+    dense = arm_config(base, Arm("sgm-sfm", "shot")).tracking.guided_search
+    assert dense == base.tracking.guided_search
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
 def test_every_sfm_arm_of_the_evaluation_runs_its_own_matcher_whatever_the_preset(preset):
     base = load_config(overrides=[f"preset={preset}"])
     for pipeline, matcher in SFM_PIPELINES.items():

@@ -77,7 +77,7 @@ def test_held_tracks_are_searched_between_whole_searches(world) -> None:
 
 def test_without_guidance_it_is_recognize(world) -> None:
     cfg, templates, scene, _ = world
-    search = GuidedSearch(templates, cfg, TrackingConfig())
+    search = GuidedSearch(templates, cfg, TrackingConfig(guided_search=False))
     for k in (1, 2, 3):
         guided = search(scene, seed=k, stamp_ns=k * SCENE_S, viewpoint_m=VIEWPOINT)
         plain = recognize(scene, templates, cfg, seed=k, viewpoint_m=VIEWPOINT)
