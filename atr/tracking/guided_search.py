@@ -194,8 +194,9 @@ class GuidedSearch:
         that its search does not depend on when guidance arrived.
 
         Returns:
-            ``recognize``'s or ``verify_places``'s result; its stats gain "search": "whole" or the number
-            of regions, and "searched_points": the points it was given.
+            ``recognize``'s or ``verify_places``'s result (``recognize``'s on the regions' points when a
+            cloud matched in regions meets a matcher that holds no track); its stats gain "search":
+            "whole" or the number of regions, and "searched_points": the points it was given.
 
         Raises:
             As ``recognize`` (the input is checked there). A stamp not after the previous scene's does
@@ -222,16 +223,29 @@ class GuidedSearch:
             if sigma is not None and np.shape(sigma) == (len(inside),):
                 sigma = np.asarray(sigma)[inside]
             poses, targets = self.places()
-            result = verify_places(
-                points,
-                self.templates,
-                self.recognition,
-                poses,
-                seed=seed,
-                viewpoint_m=viewpoint_m,
-                scene_sigma_m=sigma,
-                targets_per_place=targets,
-            )
+            if poses:
+                result = verify_places(
+                    points,
+                    self.templates,
+                    self.recognition,
+                    poses,
+                    seed=seed,
+                    viewpoint_m=viewpoint_m,
+                    scene_sigma_m=sigma,
+                    targets_per_place=targets,
+                )
+            else:
+                # matched in regions, but no track held here (a restarted matcher, whose sfm still
+                # follows the guidance it had): every template searches the regions, so the targets
+                # there are found again instead of the scene going unanswered
+                result = recognize(
+                    points,
+                    self.templates,
+                    self.recognition,
+                    seed=seed,
+                    viewpoint_m=viewpoint_m,
+                    scene_sigma_m=sigma,
+                )
         result.stats["search"] = "whole" if regions is None else len(regions)
         result.stats["searched_points"] = len(points)
         if self.tracking.guided_search:

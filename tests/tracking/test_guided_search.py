@@ -10,6 +10,7 @@ import pytest
 from atr.recognition import RecognitionConfig, build_template, recognize
 from atr.recognition import synthetic as syn
 from atr.recognition._backend import have_descriptor
+from atr.regions import SearchRegion
 from atr.tracking import TrackingConfig, TrackInput
 from atr.tracking.guided_search import GuidedSearch
 
@@ -84,6 +85,19 @@ def test_without_guidance_it_is_recognize(world) -> None:
         assert guided.stats["search"] == "whole"
         assert [d.to_dict() for d in guided.detections] == [d.to_dict() for d in plain.detections]
     assert search.regions() is None
+
+
+def test_a_matcher_that_holds_no_track_searches_the_regions_it_is_given(world) -> None:
+    """A restarted matcher meets clouds sfm matched around the tracks its predecessor held: it finds the
+    targets there with every template instead of confirming nothing."""
+    cfg, templates, scene, tank_m = world
+    region = SearchRegion(tank_m[:2].copy(), 8.0, -1.0, 4.0)
+    search = GuidedSearch(templates, cfg, TrackingConfig(guided_search=True))
+    assert not search.tracker.tracks
+    found = search(scene, seed=0, stamp_ns=SCENE_S, viewpoint_m=VIEWPOINT, cloud_regions=[region])
+    assert found.stats["search"] == 1 and found.stats["searched_points"] < len(scene)
+    assert _tank_found(found, tank_m)
+    assert search.tracker.tracks  # and it holds the tank again
 
 
 def test_search_radius_is_a_multiple_of_the_largest_footprint(world) -> None:
