@@ -133,6 +133,7 @@ def recognize(
     seed: int,
     viewpoint_m: np.ndarray | None = None,
     scene_sigma_m: np.ndarray | None = None,
+    places_T_world_target: Sequence[np.ndarray] = (),
 ) -> RecognitionResult:
     """Recognise the templates' targets in a scene cloud (§II-B-2).
 
@@ -151,6 +152,9 @@ def recognize(
         scene_sigma_m: optional (N,) 1-sigma position uncertainty per scene point, metres (the SfM
             cloud's ``sigma_m``); verification then does not count a point's noise as clutter
             (``config.k_clutter_sigma``). None (e.g. LIDAR): the fixed overlap distance.
+        places_T_world_target: (4, 4) world-from-target poses where every template is also laid and
+            refined by ICP (``verify_places``), its fits competing with the searched ones (ours: the
+            held tracks' poses in a track-guided flight's whole scenes, ``atr.tracking.guided_search``).
 
     Returns:
         RecognitionResult; empty detections with ``stats["reason"]`` when the scene is too small.
@@ -177,6 +181,8 @@ def recognize(
         return RecognitionResult([], clock.result(), stats)
     search = _Search(scene, config, rng, clock)
     stats["templates"] = [search.find(tpl) for tpl in templates]
+    if len(places_T_world_target):
+        stats["laid"] = [search.confirm(tpl, places_T_world_target) for tpl in templates]
     if config.matcher.cue_places and scene.upright:
         with clock.stage("cue"):
             places = _unexplained_places(search, templates)

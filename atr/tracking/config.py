@@ -83,6 +83,11 @@ class TrackingConfig:
             by the classes held at its place, not by the largest template: only they are laid there,
             and the image windows the SfM step matches shrink with the cylinders (a car's is a third
             of a main battle tank's).
+        guided_whole_lays_all: with guided_search, a whole search also lays every template at each
+            live track's pose and refines it by ICP, the fits competing with the searched ones: a guided
+            scene lays at a place only the classes held there, so a place a look-alike's template won
+            once would stay its own until the descriptors found the target there again. Chosen on
+            tuning seeds 101-102 (docs/tracking.md, "Every template at the held places").
         full_search_every: with guided_search, every this-many-th scene searches the whole cloud.
         k_search_radius: a held track's search cylinder's radius / the largest footprint (length +
             width) of the templates laid at its place (guided_class_cylinders; else of every template):
@@ -114,6 +119,7 @@ class TrackingConfig:
     guided_sfm: bool = True
     guided_place_classes: bool = True
     guided_class_cylinders: bool = True
+    guided_whole_lays_all: bool = True
     full_search_every: int = bounded(4, ge=1)
     k_search_radius: float = bounded(0.6, gt=0)
 

@@ -8,7 +8,9 @@ are laid at its fused pose and refined by ICP (``atr.recognition.verify_places``
 matching, grouping or RANSAC; acceptance and the place competition are the whole search's, so a place
 still goes to the template that explains it best among those a whole search gave it to. The whole cloud
 is searched every ``tracking.full_search_every``-th scene and whenever no track is held, so a target that
-appears, or one a false track hid, is found there (``SearchSchedule``). The dense SfM step of a guided
+appears, or one a false track hid, is found there (``SearchSchedule``); a whole search also lays every
+template at each live track's pose (``tracking.guided_whole_lays_all``), so a place a look-alike's
+template was given goes back to the template that explains it best. The dense SfM step of a guided
 scene matches only the cylinders' image windows, each in its own band of disparities
 (``tracking.guided_sfm``, ``atr.sfm.dense``).
 
@@ -209,6 +211,9 @@ class GuidedSearch:
         well_formed = points.ndim == 2 and points.shape[1] == 3
         if regions is None or not well_formed:
             regions = None
+            laid = []
+            if self.tracking.guided_search and self.tracking.guided_whole_lays_all and well_formed:
+                laid = self.places()[0]
             result = recognize(
                 points,
                 self.templates,
@@ -216,6 +221,7 @@ class GuidedSearch:
                 seed=seed,
                 viewpoint_m=viewpoint_m,
                 scene_sigma_m=sigma,
+                places_T_world_target=laid,
             )
         else:
             inside = points_in_regions(points.astype(np.float64), regions)

@@ -100,6 +100,29 @@ def test_a_matcher_that_holds_no_track_searches_the_regions_it_is_given(world) -
     assert search.tracker.tracks  # and it holds the tank again
 
 
+def test_a_whole_search_also_lays_every_template_at_the_held_places(world) -> None:
+    """A place a look-alike's template won is laid with every template again in the whole scenes, so the
+    place competition can give it back; guided scenes lay only the classes held there."""
+    cfg, templates, scene, tank_m = world
+    for lays_all in (True, False):
+        tracking = TrackingConfig(
+            guided_search=True, full_search_every=3, guided_whole_lays_all=lays_all
+        )
+        search = GuidedSearch(templates, cfg, tracking)
+        for k in (1, 2):  # the tank's place held as the truck's: the look-alike won it twice
+            search.tracker.update([TrackInput("truck6x6", tank_m, yaw_rad=0.7)], k * SCENE_S)
+        search.schedule.searched(whole=False)
+        search.schedule.searched(whole=False)  # the next scene is a whole one
+        result = search(scene, seed=0, stamp_ns=3 * SCENE_S, viewpoint_m=VIEWPOINT)
+        assert result.stats["search"] == "whole"
+        if lays_all:
+            laid = {t["target"]: t["hypotheses"] for t in result.stats["laid"]}
+            assert laid == {"t72": 1, "truck6x6": 1}
+        else:
+            assert "laid" not in result.stats
+        assert _tank_found(result, tank_m)
+
+
 def test_search_radius_is_a_multiple_of_the_largest_footprint(world) -> None:
     cfg, templates, _, _ = world
 
