@@ -207,13 +207,32 @@ class GuidedSearch:
         """
         regions = self.regions() if cloud_regions is None else (list(cloud_regions) or None)
         points, sigma = np.asarray(scene_points_m), scene_sigma_m
-        # a malformed cloud goes to recognize whole, which names what is wrong with it
         well_formed = points.ndim == 2 and points.shape[1] == 3
-        if regions is None or not well_formed:
-            regions = None
-            laid = []
-            if self.tracking.guided_search and self.tracking.guided_whole_lays_all and well_formed:
-                laid = self.places()[0]
+        if not well_formed:
+            regions = None  # recognize, searching whole, names what is wrong with the cloud
+        if regions is not None:
+            inside = points_in_regions(points.astype(np.float64), regions)
+            points = points[inside]
+            if sigma is not None and np.shape(sigma) == (len(inside),):
+                sigma = np.asarray(sigma)[inside]
+        poses, targets = self.places() if well_formed else ([], None)
+        if regions is not None and poses:
+            result = verify_places(
+                points,
+                self.templates,
+                self.recognition,
+                poses,
+                seed=seed,
+                viewpoint_m=viewpoint_m,
+                scene_sigma_m=sigma,
+                targets_per_place=targets,
+            )
+        else:
+            # A whole search, which also lays every template at the held places; or a cloud matched in
+            # regions meeting a matcher that holds no track (a restarted one, whose sfm still follows
+            # the guidance it had): every template searches the regions, so their targets are found again.
+            t = self.tracking
+            lays_all = regions is None and t.guided_search and t.guided_whole_lays_all
             result = recognize(
                 points,
                 self.templates,
@@ -221,37 +240,8 @@ class GuidedSearch:
                 seed=seed,
                 viewpoint_m=viewpoint_m,
                 scene_sigma_m=sigma,
-                places_T_world_target=laid,
+                places_T_world_target=poses if lays_all else [],
             )
-        else:
-            inside = points_in_regions(points.astype(np.float64), regions)
-            points = points[inside]
-            if sigma is not None and np.shape(sigma) == (len(inside),):
-                sigma = np.asarray(sigma)[inside]
-            poses, targets = self.places()
-            if poses:
-                result = verify_places(
-                    points,
-                    self.templates,
-                    self.recognition,
-                    poses,
-                    seed=seed,
-                    viewpoint_m=viewpoint_m,
-                    scene_sigma_m=sigma,
-                    targets_per_place=targets,
-                )
-            else:
-                # matched in regions, but no track held here (a restarted matcher, whose sfm still
-                # follows the guidance it had): every template searches the regions, so the targets
-                # there are found again instead of the scene going unanswered
-                result = recognize(
-                    points,
-                    self.templates,
-                    self.recognition,
-                    seed=seed,
-                    viewpoint_m=viewpoint_m,
-                    scene_sigma_m=sigma,
-                )
         result.stats["search"] = "whole" if regions is None else len(regions)
         result.stats["searched_points"] = len(points)
         if self.tracking.guided_search:
