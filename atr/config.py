@@ -8,9 +8,9 @@ constructor. This module gathers them and applies overrides written as `group.fi
 
 The SfM defaults to the arm that measures best on held-out targets: dense matching (`sfm.matcher=sgm`,
 ours; docs/evaluation), with the matcher confirming the targets it holds between whole searches
-(`tracking.guided_search`, ours; docs/tracking.md). A preset is a named list of overrides, given as `preset=NAME` among them (`--preset
-paper` on the command line, `preset: paper` in a YAML file); it applies where it stands, so a later
-override refines it. `preset=paper` is the paper's sparse GFTT/KLT SfM deciding each scene alone, the
+(`tracking.guided_search`, ours; docs/tracking.md). A preset is a named list of overrides, given as
+`preset=NAME` among them (`--preset paper` on the command line, `preset: paper` in a YAML file); it
+applies where it stands, so a later override refines it. `preset=paper` is the paper's sparse GFTT/KLT SfM deciding each scene alone, the
 evaluation's `gftt-sfm` arm.
 """
 

@@ -71,8 +71,8 @@ class TrackingConfig:
             track per class, docs/tracking.md).
         guided_search: between whole-cloud searches the matcher only confirms, by ICP at their poses, the
             tracks its own detections make (``atr.tracking.guided_search``; ours, on by default: on the
-            held-out targets it found more and was several times faster than a whole search every
-            scene, docs/tracking.md). The paper's arms decide each scene alone (``preset=paper``).
+            tuning seeds it found as many targets or more, among look-alikes more, at a tenth of the
+            time or less, docs/tracking.md). The paper's arms decide each scene alone (``preset=paper``).
         guided_sfm: with guided_search, a guided scene's SfM step matches only the image window that
             holds the search regions (``atr.sfm.dense``): the dense step costs what the window does.
         guided_place_classes: with guided_search, a guided scene lays at a track's pose only the
