@@ -42,3 +42,17 @@ def test_layout_edges_match_manifests(layout):
         assert key in outputs, f"{edge}: {producer} does not declare {key}"
         assert key in inputs, f"{edge}: {consumer} does not declare {key}"
         assert outputs[key] == inputs[key], f"{edge}: schema {outputs[key]} != {inputs[key]}"
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_a_manifests_declared_defaults_are_the_configs(name):
+    """A setting of the one config tree that a manifest declares with a plain type says its real default."""
+    from atr.config import AtrConfig
+
+    config = AtrConfig()
+    plain = {"bool": bool, "int": int, "float": float, "str": str}
+    for key, setting in (manifest(name).get("settings") or {}).items():
+        if key.startswith("--") or setting.get("type") not in plain:
+            continue
+        group, field = key.split(".", 1)
+        assert setting["default"] == getattr(getattr(config, group), field), (name, key)
