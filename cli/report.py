@@ -1101,8 +1101,9 @@ def _requirements_section(clean: Sequence[Mapping[str, Any]], figs: Figures) -> 
         "2.6 GHz; ours on a 2-core VM (its load during the run: see the discussion). × reference: the time "
         f"per scene over a fixed workload ({REFERENCE_WORKLOAD}) timed by the same worker just before each "
         "flight, pooled like the times, so that runs in other hours of a shared machine compare; across "
-        "machines only roughly, as numpy's sort takes a vector path where the CPU offers one (– for results "
-        "computed before it was recorded).",
+        "machines only roughly (– for results computed before it was recorded; results computed before "
+        "the workload became a stable sort timed numpy's default sort, which takes a vector path on CPUs "
+        "with AVX-512 and is not comparable: docs/evaluation/protocol.md).",
         "",
         figs.stacked("fig8_stages", "Processing time per stage (Fig. 8)", stages),
     ]
