@@ -332,8 +332,9 @@ def _recognize(
         sigma = np.ascontiguousarray(sigma, np.float32).astype(np.float64)
     result = search(
         scene,
-        seed=seed,
+        seed=seed,  # the scene's frame number, which the schedule of whole searches counts
         stamp_ns=stamp_ns,
+        frame_seq=seed,
         viewpoint_m=viewpoint,
         scene_sigma_m=sigma,
         cloud_regions=cloud_regions,
@@ -550,7 +551,7 @@ def _detect_sfm(arm: Arm, inputs: _ArmInputs, scene: _Scene, work: _Work) -> lis
     search = inputs.searches[arm]
     # with track-guided search the SfM step decides, as the sfm service does: it matches only where
     # the search looks ([]: the whole pair) and the search follows; else the search decides itself
-    regions = (search.regions() or []) if config.tracking.guided_sfm else None
+    regions = (search.regions(scene.frame.seq) or []) if config.tracking.guided_sfm else None
     cloud, sfm_ms = _cloud(scene, config, regions or ())
     # the scene's time is its reconstruction (done once, shared by the descriptors) + its matcher
     work.t0 = time.perf_counter() - sfm_ms / 1e3

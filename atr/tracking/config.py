@@ -88,7 +88,13 @@ class TrackingConfig:
             scene lays at a place only the classes held there, so a place a look-alike's template won
             once would stay its own until the descriptors found the target there again. Chosen on
             tuning seeds 101-102 (docs/tracking.md, "Every template at the held places").
-        full_search_every: with guided_search, every this-many-th scene searches the whole cloud.
+        full_search_every_frames: with guided_search, a scene searches the whole cloud once this many
+            camera frames have passed since the last whole search (``SearchSchedule``): frames, not
+            scenes, so that a flight whose every pair is a scene and the evaluation's sampled flights
+            (``atr eval --every 5``) search whole at the same places on the orbit. 20 is what every
+            guided figure was chosen and measured with (every fourth scene of every fifth), about a
+            quarter of an orbit at 0 degrees of obliquity; a flight whose every pair is a scene then
+            spends one scene in twenty, not one in four, on a whole search (docs/tracking.md).
         k_search_radius: a held track's search cylinder's radius / the largest footprint (length +
             width) of the templates laid at its place (guided_class_cylinders; else of every template):
             a vehicle at the track's place is inside at any heading (its half-diagonal is under half
@@ -120,7 +126,7 @@ class TrackingConfig:
     guided_place_classes: bool = True
     guided_class_cylinders: bool = True
     guided_whole_lays_all: bool = True
-    full_search_every: int = bounded(4, ge=1)
+    full_search_every_frames: int = bounded(20, ge=1)
     k_search_radius: float = bounded(0.6, gt=0)
 
     def __post_init__(self) -> None:

@@ -7,8 +7,9 @@ track, and the templates of the classes held at each track's place (``tracking.g
 are laid at its fused pose and refined by ICP (``atr.recognition.verify_places``), with no description,
 matching, grouping or RANSAC; acceptance and the place competition are the whole search's, so a place
 still goes to the template that explains it best among those a whole search gave it to. The whole cloud
-is searched every ``tracking.full_search_every``-th scene and whenever no track is held, so a target that
-appears, or one a false track hid, is found there (``SearchSchedule``); a whole search also lays every
+is searched once every ``tracking.full_search_every_frames`` camera frames and whenever no track is held
+(``SearchSchedule``), so a target that
+appears, or one a false track hid, is found there; a whole search also lays every
 template at each live track's pose (``tracking.guided_whole_lays_all``), so a place a look-alike's
 template was given goes back to the template that explains it best. The dense SfM step of a guided
 scene matches only the cylinders' image windows, each in its own band of disparities
@@ -44,28 +45,40 @@ from atr.tracking.tracker import Track, Tracker, TrackInput
 
 
 class SearchSchedule:
-    """Which scenes are searched whole: the first, every ``full_search_every``-th, and every scene while no
-    track is held. Kept by whoever decides first: the matcher in process (``GuidedSearch``), or the sfm
-    service, which matches a pair before the matcher sees it and tells it in the cloud where it looked.
+    """Which scenes are searched whole: the first, the first one ``full_search_every_frames`` camera frames
+    or more after the last whole one, and every scene while no track is held. Kept by whoever decides
+    first: the matcher in process (``GuidedSearch``), or the sfm service, which matches a pair before the
+    matcher sees it and tells it in the cloud where it looked.
+
+    The period counts camera frames (a scene's latest frame number), not scenes: the orbit turns by the
+    same angle per frame at every range, so a whole search comes at the same part of the orbit whether
+    every pair is a scene (a flight) or every fifth is (``atr eval --every 5``), and the evaluation's
+    sampled flights search whole where the flight would.
     """
 
-    def __init__(self, full_search_every: int) -> None:
-        self.full_search_every = full_search_every
-        self._since_whole: int | None = None  # scenes since the last whole search
+    def __init__(self, full_search_every_frames: int) -> None:
+        self.full_search_every_frames = full_search_every_frames
+        self._last_whole: int | None = None  # frame number of the last whole search
 
-    def regions(self, held: Sequence[SearchRegion] | None) -> list[SearchRegion] | None:
-        """Where the next scene is searched given the held tracks' regions, or None for the whole scene."""
-        if not held or self._since_whole is None or self._since_whole + 1 >= self.full_search_every:
+    def regions(
+        self, held: Sequence[SearchRegion] | None, frame_seq: int
+    ) -> list[SearchRegion] | None:
+        """Where the scene of this frame is searched given the held tracks' regions, or None for the
+        whole scene.
+        """
+        last = self._last_whole
+        if not held or last is None or not 0 <= frame_seq - last < self.full_search_every_frames:
             return None
         return list(held)
 
-    def searched(self, *, whole: bool) -> None:
-        """Note that a scene was searched whole or only in regions."""
-        self._since_whole = 0 if whole else (self._since_whole or 0) + 1
+    def searched(self, *, whole: bool, frame_seq: int) -> None:
+        """Note that the scene of this frame was searched whole or only in regions."""
+        if whole:
+            self._last_whole = frame_seq
 
     def reset(self) -> None:
         """Start again: the next scene is searched whole."""
-        self._since_whole = None
+        self._last_whole = None
 
 
 class GuidedSearch:
@@ -105,7 +118,7 @@ class GuidedSearch:
             if cylinders
             else (0.0, 0.0)
         )
-        self.schedule = SearchSchedule(tracking.full_search_every)
+        self.schedule = SearchSchedule(tracking.full_search_every_frames)
 
     @staticmethod
     def _cylinder_of(points_m: np.ndarray, k_search_radius: float) -> tuple[float, float, float]:
@@ -117,9 +130,9 @@ class GuidedSearch:
         radius_m = max(k_search_radius * largest_footprint_m(points_m), reach_m)
         return radius_m, float(points_m[:, 2].min()), float(points_m[:, 2].max())
 
-    def regions(self) -> list[SearchRegion] | None:
-        """Where the next scene is searched, or None for the whole cloud (``SearchSchedule``)."""
-        return self.schedule.regions(self.held_regions())
+    def regions(self, frame_seq: int) -> list[SearchRegion] | None:
+        """Where the scene of this frame is searched, or None for the whole cloud (``SearchSchedule``)."""
+        return self.schedule.regions(self.held_regions(), frame_seq)
 
     def held_regions(self) -> list[SearchRegion] | None:
         """The cylinders around the live tracks while one is held, else None: what the matcher publishes
@@ -182,6 +195,7 @@ class GuidedSearch:
         *,
         seed: int,
         stamp_ns: int,
+        frame_seq: int,
         viewpoint_m: np.ndarray | None = None,
         scene_sigma_m: np.ndarray | None = None,
         cloud_regions: Sequence[SearchRegion] | None = None,
@@ -190,10 +204,14 @@ class GuidedSearch:
         poses are confirmed.
 
         Args as ``atr.recognition.recognize``, and ``stamp_ns``: the scene's stamp (the tracker ages its
-        tracks by the scenes between stamps); ``cloud_regions``: where the SfM step matched the cloud
-        when it decided (the sfm service keeps its own ``SearchSchedule``): the cloud is searched in
-        them, or whole when empty; None: where ``regions`` says. A cloud says where it was matched so
-        that its search does not depend on when guidance arrived.
+        tracks by the scenes between stamps); ``frame_seq``: the number of the scene's latest camera
+        frame (the schedule of whole searches counts frames); ``cloud_regions``: where the SfM step
+        matched the cloud when it decided (the sfm service keeps its own ``SearchSchedule``): a cloud
+        matched in regions is searched in them, whatever the matcher holds, so that its search does
+        not depend on when guidance arrived; one matched whole (empty), or None, is searched where
+        ``regions`` says. In lock-step the two schedules agree; at the camera's pace sfm matches pairs
+        whole until the matcher's first guidance reaches it, and the matcher, holding a track by then,
+        confirms it in those clouds rather than searching each whole.
 
         Returns:
             ``recognize``'s or ``verify_places``'s result (``recognize``'s on the regions' points when a
@@ -205,7 +223,9 @@ class GuidedSearch:
             not raise: the guidance starts again from no track, so the next scene is searched whole.
 
         """
-        regions = self.regions() if cloud_regions is None else (list(cloud_regions) or None)
+        # a cloud matched in regions is searched there; one matched whole (or not said) where the
+        # schedule says: at the camera's pace sfm matches pairs whole until the guidance reaches it
+        regions = list(cloud_regions) if cloud_regions else self.regions(frame_seq)
         points, sigma = np.asarray(scene_points_m), scene_sigma_m
         well_formed = points.ndim == 2 and points.shape[1] == 3
         if not well_formed:
@@ -245,13 +265,14 @@ class GuidedSearch:
         result.stats["search"] = "whole" if regions is None else len(regions)
         result.stats["searched_points"] = len(points)
         if self.tracking.guided_search:
-            self._observe(result, stamp_ns, viewpoint_m, whole=regions is None)
+            self._observe(result, stamp_ns, frame_seq, viewpoint_m, whole=regions is None)
         return result
 
     def _observe(
         self,
         result: RecognitionResult,
         stamp_ns: int,
+        frame_seq: int,
         viewpoint_m: np.ndarray | None,
         *,
         whole: bool,
@@ -266,4 +287,4 @@ class GuidedSearch:
             self.tracker = Tracker(self.tracking)
             self.schedule.reset()
             return
-        self.schedule.searched(whole=whole)
+        self.schedule.searched(whole=whole, frame_seq=frame_seq)

@@ -83,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
                     cloud_points(cloud).astype(np.float64),
                     seed=int(cloud["frame_seqs"][-1]),  # the frame, whatever clouds were lost
                     stamp_ns=message.stamp_ns,
+                    frame_seq=int(cloud["frame_seqs"][-1]),
                     viewpoint_m=cloud.get("viewpoint_m"),
                     scene_sigma_m=None if sigma is None else np.asarray(sigma, np.float64),
                     # where the sfm matched the pair, when it decided (it keeps the schedule then)

@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     # track-guided search decides here, before the matcher sees the pair: the regions around the
     # matcher's held tracks (its latest guidance) and which pairs are matched whole
     held: list[SearchRegion] = []
-    schedule = SearchSchedule(tracking.full_search_every)
+    schedule = SearchSchedule(tracking.full_search_every_frames)
     with start_node("sfm", args, inputs=inputs) as node:
         node.ready()
 
@@ -109,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
                 note = f"no image of frame {frames[0]} was accepted (never arrived, or rejected)"
                 empty(image_b, frames, pose["T_world_cam_t1"][:3, 3], note)
                 return
-            regions = (schedule.regions(held) or []) if guided else None
+            regions = (schedule.regions(held, result.frame_seq) or []) if guided else None
             cloud = reconstruct(
                 result.image_t["data"],
                 image_b["data"],
@@ -120,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
                 image_b.get("distortion"),
                 regions or (),
             )
-            schedule.searched(whole=not regions)
+            schedule.searched(whole=not regions, frame_seq=result.frame_seq)
             publish_cloud(
                 _cloud(
                     image_b["stamp_ns"],

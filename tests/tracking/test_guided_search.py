@@ -12,7 +12,7 @@ from atr.recognition import synthetic as syn
 from atr.recognition._backend import have_descriptor
 from atr.regions import SearchRegion
 from atr.tracking import TrackingConfig, TrackInput
-from atr.tracking.guided_search import GuidedSearch
+from atr.tracking.guided_search import GuidedSearch, SearchSchedule
 
 DESC = "shot" if have_descriptor("shot") else "fpfh"
 AZ, EL, RANGE = np.radians(20.0), np.radians(30.0), 50.0
@@ -57,11 +57,11 @@ def _tank_found(result, position_m) -> bool:
 
 def test_held_tracks_are_searched_between_whole_searches(world) -> None:
     cfg, templates, scene, tank_m = world
-    tracking = TrackingConfig(guided_search=True, full_search_every=3)
+    tracking = TrackingConfig(guided_search=True, full_search_every_frames=3)
     search = GuidedSearch(templates, cfg, tracking)
     searches, points = [], []
     for k in range(1, 6):
-        result = search(scene, seed=0, stamp_ns=k * SCENE_S, viewpoint_m=VIEWPOINT)
+        result = search(scene, seed=0, stamp_ns=k * SCENE_S, frame_seq=k, viewpoint_m=VIEWPOINT)
         searches.append(result.stats["search"])
         points.append(result.stats["searched_points"])
         assert _tank_found(result, tank_m), (k, result.stats["search"])
@@ -71,20 +71,43 @@ def test_held_tracks_are_searched_between_whole_searches(world) -> None:
     assert points[2] < len(scene) and points[3] < len(scene)
     assert points[0] == points[1] == points[4] == len(scene)
     # a scene out of order does not fail the recognition; the guidance starts again from no track
-    late = search(scene, seed=0, stamp_ns=2 * SCENE_S, viewpoint_m=VIEWPOINT)
+    late = search(scene, seed=0, stamp_ns=2 * SCENE_S, frame_seq=2, viewpoint_m=VIEWPOINT)
     assert _tank_found(late, tank_m)
-    assert search.regions() is None
+    assert search.regions(3) is None
+
+
+def _whole_frames(schedule: SearchSchedule, frames: range) -> list[int]:
+    held = [SearchRegion(np.zeros(2), 5.0, -1.0, 4.0)]  # a track is held from the start
+    whole = []
+    for k in frames:
+        regions = schedule.regions(held, k)
+        schedule.searched(whole=regions is None, frame_seq=k)
+        whole += [k] if regions is None else []
+    return whole
+
+
+def test_the_schedule_counts_frames_not_scenes() -> None:
+    """A flight whose every pair is a scene and one sampled every fifth pair search whole at the same
+    frames; a frame before the last whole search (another flight, a replay) is searched whole."""
+    every_scene = _whole_frames(SearchSchedule(20), range(0, 100))
+    every_fifth = _whole_frames(SearchSchedule(20), range(0, 100, 5))
+    assert every_scene == every_fifth == [0, 20, 40, 60, 80]
+    assert _whole_frames(SearchSchedule(20), range(3, 100, 10)) == [3, 23, 43, 63, 83]
+    schedule = SearchSchedule(20)
+    _whole_frames(schedule, range(50, 60))
+    assert schedule.regions([SearchRegion(np.zeros(2), 5.0, -1.0, 4.0)], 7) is None
+    assert schedule.regions([], 55) is None  # nothing held: whole
 
 
 def test_without_guidance_it_is_recognize(world) -> None:
     cfg, templates, scene, _ = world
     search = GuidedSearch(templates, cfg, TrackingConfig(guided_search=False))
     for k in (1, 2, 3):
-        guided = search(scene, seed=k, stamp_ns=k * SCENE_S, viewpoint_m=VIEWPOINT)
+        guided = search(scene, seed=k, stamp_ns=k * SCENE_S, frame_seq=k, viewpoint_m=VIEWPOINT)
         plain = recognize(scene, templates, cfg, seed=k, viewpoint_m=VIEWPOINT)
         assert guided.stats["search"] == "whole"
         assert [d.to_dict() for d in guided.detections] == [d.to_dict() for d in plain.detections]
-    assert search.regions() is None
+    assert search.regions(4) is None
 
 
 def test_a_matcher_that_holds_no_track_searches_the_regions_it_is_given(world) -> None:
@@ -94,10 +117,34 @@ def test_a_matcher_that_holds_no_track_searches_the_regions_it_is_given(world) -
     region = SearchRegion(tank_m[:2].copy(), 8.0, -1.0, 4.0)
     search = GuidedSearch(templates, cfg, TrackingConfig(guided_search=True))
     assert not search.tracker.tracks
-    found = search(scene, seed=0, stamp_ns=SCENE_S, viewpoint_m=VIEWPOINT, cloud_regions=[region])
+    found = search(
+        scene, seed=0, stamp_ns=SCENE_S, frame_seq=1, viewpoint_m=VIEWPOINT, cloud_regions=[region]
+    )
     assert found.stats["search"] == 1 and found.stats["searched_points"] < len(scene)
     assert _tank_found(found, tank_m)
     assert search.tracker.tracks  # and it holds the tank again
+
+
+def test_a_cloud_matched_whole_is_searched_where_the_schedule_says(world) -> None:
+    """At the camera's pace sfm matches pairs whole until the matcher's guidance reaches it: a matcher
+    that holds its target confirms it in those clouds, and searches whole only when its schedule says."""
+    cfg, templates, scene, tank_m = world
+    search = GuidedSearch(
+        templates, cfg, TrackingConfig(guided_search=True, full_search_every_frames=3)
+    )
+    searches = []
+    for k in range(1, 6):
+        result = search(
+            scene,
+            seed=0,
+            stamp_ns=k * SCENE_S,
+            frame_seq=k,
+            viewpoint_m=VIEWPOINT,
+            cloud_regions=[],
+        )
+        searches.append(result.stats["search"])
+        assert _tank_found(result, tank_m), (k, result.stats["search"])
+    assert searches == ["whole", "whole", 1, 1, "whole"]
 
 
 def test_a_whole_search_also_lays_every_template_at_the_held_places(world) -> None:
@@ -106,14 +153,13 @@ def test_a_whole_search_also_lays_every_template_at_the_held_places(world) -> No
     cfg, templates, scene, tank_m = world
     for lays_all in (True, False):
         tracking = TrackingConfig(
-            guided_search=True, full_search_every=3, guided_whole_lays_all=lays_all
+            guided_search=True, full_search_every_frames=3, guided_whole_lays_all=lays_all
         )
         search = GuidedSearch(templates, cfg, tracking)
         for k in (1, 2):  # the tank's place held as the truck's: the look-alike won it twice
             search.tracker.update([TrackInput("truck6x6", tank_m, yaw_rad=0.7)], k * SCENE_S)
-        search.schedule.searched(whole=False)
-        search.schedule.searched(whole=False)  # the next scene is a whole one
-        result = search(scene, seed=0, stamp_ns=3 * SCENE_S, viewpoint_m=VIEWPOINT)
+        search.schedule.searched(whole=True, frame_seq=0)  # frame 3 is whole again
+        result = search(scene, seed=0, stamp_ns=3 * SCENE_S, frame_seq=3, viewpoint_m=VIEWPOINT)
         assert result.stats["search"] == "whole"
         if lays_all:
             laid = {t["target"]: t["hypotheses"] for t in result.stats["laid"]}
@@ -140,15 +186,17 @@ def test_search_radius_is_a_multiple_of_the_largest_footprint(world) -> None:
 
 def test_a_tentative_track_is_searched_beside_a_held_one(world) -> None:
     cfg, templates, _, _ = world
-    search = GuidedSearch(templates, cfg, TrackingConfig(guided_search=True, full_search_every=3))
+    search = GuidedSearch(
+        templates, cfg, TrackingConfig(guided_search=True, full_search_every_frames=3)
+    )
     truck = TrackInput("truck6x6", np.array([5.0, -8.0, 0.0]), 0.5)
     tank = TrackInput("t72", np.array([17.6, 11.8, 0.0]), 0.9)
     for k in (1, 2):
         search.tracker.update([truck], k * SCENE_S)  # the truck's track is confirmed
-    nothing = search(np.zeros((0, 3)), seed=0, stamp_ns=3 * SCENE_S)  # a whole search, empty
+    nothing = search(np.zeros((0, 3)), seed=0, stamp_ns=3 * SCENE_S, frame_seq=3)  # whole, empty
     assert nothing.stats["search"] == "whole" and not nothing.detections
     search.tracker.update([truck, tank], 4 * SCENE_S)  # the tank seen once: a tentative track
-    regions = search.regions()
+    regions = search.regions(4)
     assert regions is not None and len(regions) == 2
     centres = sorted(tuple(np.round(r.centre_m, 1)) for r in regions)
     assert centres == [(5.0, -8.0), (17.6, 11.8)]
@@ -159,7 +207,7 @@ def test_a_guided_scene_lays_at_a_place_only_the_classes_held_there(world) -> No
     truck_m = TRUCK_SHIFT_M  # the truck stands at its scene's origin with heading 0.2 rad
     for per_place in (True, False):
         tracking = TrackingConfig(
-            guided_search=True, full_search_every=3, guided_place_classes=per_place
+            guided_search=True, full_search_every_frames=3, guided_place_classes=per_place
         )
         search = GuidedSearch(templates, cfg, tracking)
         for k in (1, 2):  # both confirmed, each with a known heading
@@ -170,14 +218,14 @@ def test_a_guided_scene_lays_at_a_place_only_the_classes_held_there(world) -> No
                 ],
                 k * SCENE_S,
             )
-        search.schedule.searched(whole=True)  # the next scene is a guided one
+        search.schedule.searched(whole=True, frame_seq=2)  # frame 3 is guided
         poses, targets = search.places()
         assert len(poses) == 2
         if per_place:
             assert targets == [frozenset({"t72"}), frozenset({"truck6x6"})]
         else:
             assert targets is None
-        result = search(scene, seed=0, stamp_ns=3 * SCENE_S, viewpoint_m=VIEWPOINT)
+        result = search(scene, seed=0, stamp_ns=3 * SCENE_S, frame_seq=3, viewpoint_m=VIEWPOINT)
         assert result.stats["search"] == 2  # guided: both tracks' cylinders
         laid = {t["target"]: t["hypotheses"] for t in result.stats["templates"]}
         assert laid == ({"t72": 1, "truck6x6": 1} if per_place else {"t72": 2, "truck6x6": 2})
@@ -191,7 +239,7 @@ def test_a_held_track_s_cylinder_holds_the_classes_held_at_its_place(world) -> N
 
     def regions(per_class: bool, truck_at: np.ndarray) -> list:
         tracking = TrackingConfig(
-            guided_search=True, full_search_every=3, guided_class_cylinders=per_class
+            guided_search=True, full_search_every_frames=3, guided_class_cylinders=per_class
         )
         search = GuidedSearch(templates, cfg, tracking)
         for k in (1, 2):
@@ -202,10 +250,10 @@ def test_a_held_track_s_cylinder_holds_the_classes_held_at_its_place(world) -> N
                 ],
                 k * SCENE_S,
             )
-        search.schedule.searched(whole=True)
-        found = search(scene, seed=0, stamp_ns=3 * SCENE_S, viewpoint_m=VIEWPOINT)
+        search.schedule.searched(whole=True, frame_seq=2)
+        found = search(scene, seed=0, stamp_ns=3 * SCENE_S, frame_seq=3, viewpoint_m=VIEWPOINT)
         assert found.stats["search"] == 2 and _tank_found(found, tank_m)
-        return search.regions() or [], search.radius_m
+        return search.regions(4) or [], search.radius_m
 
     (tank, truck), largest_m = regions(True, truck_m)
     # each cylinder is its own class's: never less than that template reaches, at most the largest
