@@ -88,6 +88,13 @@ class TrackingConfig:
             scene lays at a place only the classes held there, so a place a look-alike's template won
             once would stay its own until the descriptors found the target there again. Chosen on
             tuning seeds 101-102 (docs/tracking.md, "Every template at the held places").
+        guided_reacquire_misses: with guided_search, once a confirmed track has gone unconfirmed
+            this many scenes in a row the next scene is searched whole (once per loss; 0: never, the
+            default): a guided scene looks for a held target only at its fused pose, and one whose
+            fit there failed could be found again by the descriptors while its track still holds.
+            Off: on the tuning seeds (every scene of scenarios 1-2) it lifted the T-72's track F1 on
+            seed 101 and lowered it on seed 102, with more false tracks (docs/tracking.md,
+            "Searching whole when a target is lost").
         full_search_every_frames: with guided_search, a scene searches the whole cloud once this many
             camera frames have passed since the last whole search (``SearchSchedule``): frames, not
             scenes, so that a flight whose every pair is a scene and the evaluation's sampled flights
@@ -126,6 +133,7 @@ class TrackingConfig:
     guided_place_classes: bool = True
     guided_class_cylinders: bool = True
     guided_whole_lays_all: bool = True
+    guided_reacquire_misses: int = bounded(0, ge=0)
     full_search_every_frames: int = bounded(20, ge=1)
     k_search_radius: float = bounded(0.6, gt=0)
 

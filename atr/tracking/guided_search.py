@@ -119,6 +119,10 @@ class GuidedSearch:
             else (0.0, 0.0)
         )
         self.schedule = SearchSchedule(tracking.full_search_every_frames)
+        self._misses: dict[
+            int, int
+        ] = {}  # each live track's consecutive misses before the latest scene
+        self._reacquire = False  # a held target went unconfirmed: the next scene is searched whole
 
     @staticmethod
     def _cylinder_of(points_m: np.ndarray, k_search_radius: float) -> tuple[float, float, float]:
@@ -136,7 +140,8 @@ class GuidedSearch:
 
     def held_regions(self) -> list[SearchRegion] | None:
         """The cylinders around the live tracks while one is held, else None: what the matcher publishes
-        for the sfm service's own schedule.
+        for the sfm service's own schedule. None too after a scene in which a confirmed track went
+        unconfirmed (``tracking.guided_reacquire_misses``).
 
         A track is held when confirmed, or lost for a few scenes; then every live track is searched,
         tentative ones too: a target a whole search saw once must get the scenes that confirm it, or a
@@ -144,6 +149,8 @@ class GuidedSearch:
         """
         tracks = self.tracker.tracks
         if not self.tracking.guided_search or all(t.state == "tentative" for t in tracks):
+            return None
+        if self._reacquire:  # look everywhere once for a target the latest scene lost
             return None
         regions = []
         for track in tracks:
@@ -286,5 +293,13 @@ class GuidedSearch:
         except InputError:  # scenes out of order: guide again from scratch
             self.tracker = Tracker(self.tracking)
             self.schedule.reset()
+            self._misses, self._reacquire = {}, False
             return
         self.schedule.searched(whole=whole, frame_seq=frame_seq)
+        # a confirmed track that has just gone unconfirmed for k scenes in a row: look everywhere once
+        k = self.tracking.guided_reacquire_misses
+        tracks = self.tracker.tracks
+        self._reacquire = k > 0 and any(
+            t.state == "lost" and self._misses.get(t.id, 0) < k <= t.misses for t in tracks
+        )
+        self._misses = {t.id: t.misses for t in tracks}

@@ -126,6 +126,11 @@ class Track:
     _flips: int = 0
 
     @property
+    def misses(self) -> int:
+        """Consecutive scenes, up to the latest, in which the track was not seen (0: seen in it)."""
+        return self._misses
+
+    @property
     def T_world_target(self) -> np.ndarray:
         """(4, 4) world-from-target pose of the fused position and heading (z up, no roll or pitch)."""
         c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)

@@ -147,6 +147,26 @@ def test_a_cloud_matched_whole_is_searched_where_the_schedule_says(world) -> Non
     assert searches == ["whole", "whole", 1, 1, "whole"]
 
 
+def test_the_scene_after_a_held_target_went_unconfirmed_is_searched_whole(world) -> None:
+    cfg, templates, scene, tank_m = world
+    for reacquire in (True, False):
+        tracking = TrackingConfig(
+            guided_search=True, full_search_every_frames=10, guided_reacquire_misses=int(reacquire)
+        )
+        search = GuidedSearch(templates, cfg, tracking)
+        for k in (1, 2):  # two whole scenes confirm the tank
+            search(scene, seed=0, stamp_ns=k * SCENE_S, frame_seq=k, viewpoint_m=VIEWPOINT)
+        assert search.regions(3) is not None
+        nothing = search(np.zeros((0, 3)), seed=0, stamp_ns=3 * SCENE_S, frame_seq=3)
+        assert nothing.stats["search"] != "whole" and not nothing.detections
+        # the tank's track went unconfirmed: look everywhere once, then confirm it where it stands
+        assert (search.regions(4) is None) == reacquire
+        found = search(scene, seed=0, stamp_ns=4 * SCENE_S, frame_seq=4, viewpoint_m=VIEWPOINT)
+        assert (found.stats["search"] == "whole") == reacquire
+        assert _tank_found(found, tank_m)
+        assert search.regions(5) is not None
+
+
 def test_a_whole_search_also_lays_every_template_at_the_held_places(world) -> None:
     """A place a look-alike's template won is laid with every template again in the whole scenes, so the
     place competition can give it back; guided scenes lay only the classes held there."""
