@@ -8,11 +8,10 @@ are laid at its fused pose and refined by ICP (``atr.recognition.verify_places``
 matching, grouping or RANSAC; acceptance and the place competition are the whole search's, so a place
 still goes to the template that explains it best among those a whole search gave it to. The whole cloud
 is searched once every ``tracking.full_search_every_frames`` camera frames and whenever no track is held
-(``SearchSchedule``), so a target that
-appears, or one a false track hid, is found there; a whole search also lays every
-template at each live track's pose (``tracking.guided_whole_lays_all``), so a place a look-alike's
-template was given goes back to the template that explains it best. The dense SfM step of a guided
-scene matches only the cylinders' image windows, each in its own band of disparities
+(``SearchSchedule``), so a target that appears, or one a false track hid, is found there; a whole search
+also lays every template at each live track's pose (``tracking.guided_whole_lays_all``), so a place a
+look-alike's template was given goes back to the template that explains it best. The dense SfM step of
+a guided scene matches only the cylinders' image windows, each in its own band of disparities
 (``tracking.guided_sfm``, ``atr.sfm.dense``).
 
 The cylinder's radius is ``tracking.k_search_radius`` x the largest footprint (length + width) of the
@@ -119,9 +118,8 @@ class GuidedSearch:
             else (0.0, 0.0)
         )
         self.schedule = SearchSchedule(tracking.full_search_every_frames)
-        self._misses: dict[
-            int, int
-        ] = {}  # each live track's consecutive misses before the latest scene
+        # each live track's consecutive misses before the latest scene (guided_reacquire_misses)
+        self._misses: dict[int, int] = {}
         self._reacquire = False  # a held target went unconfirmed: the next scene is searched whole
 
     @staticmethod
