@@ -5,14 +5,16 @@ services' times. In flight the camera does not wait. Here the frames go out at t
 `--rate` (`atr run --rate`), the processes run side by side as they do in flight (SfM of one scene while the
 matcher works on the previous one), and the output recording gives, per scene:
 
-- latency: the Detections message's log time minus its frame's (both stamped by the recorder, one clock);
+- latency: the Detections message's log time minus its frame's (both stamped by the recorder, one clock),
+  over every scene and over the scenes after the first with a confirmed track (the steady state: before
+  it, every scene is a whole search);
 - the interval between scenes, sustained: the span of the Detections over the scenes answered after the first;
 - frames unanswered (a service that falls behind drops inputs once its queue is full, and says so).
 
 Beside it, the services' own time per scene (their Timing messages) and the reference workload of
 `atr.evaluation.timing` timed in this process, so the figures compare across machines.
 
-Run: ./dev bench service_graph [--input FLIGHT.mcap] [--frames 21] [--rates 1 2.5]
+Run: ./dev bench service_graph [--input FLIGHT.mcap] [--frames 21] [--rates 1 2.5] [--keep DIR]
 Without --input, scenario 1 run 3 (50 m, 30 degrees) is simulated once into a temporary folder.
 """
 
@@ -47,16 +49,23 @@ def measure(out: Path, uav: str = "uav1") -> dict[str, float]:
     frame_s: dict[int, float] = {}
     answer_s: dict[int, float] = {}
     busy_ms: dict[str, list[float]] = {}
+    held_from: int | None = None  # the stamp of the first scene with a confirmed track
     for topic, message in iter_messages(out):
         if topic == f"atr/{uav}/camera/image":
             frame_s[message.publish_time] = message.log_time / 1e9
         elif topic == f"atr/{uav}/detections":
             answer_s[message.publish_time] = message.log_time / 1e9
+        elif topic == f"atr/{uav}/tracks" and held_from is None:
+            tracks = codec.unpack(message.data)["tracks"]
+            if any(t["state"] == "confirmed" for t in tracks):
+                held_from = message.publish_time
         elif topic.startswith(f"atr/{uav}/") and topic.endswith("/timing"):
             timing = codec.unpack(message.data)
             busy_ms.setdefault(timing["service"], []).append(float(timing["total_ms"]))
     answered = sorted(s for s in answer_s if s in frame_s)
     latency_s = [answer_s[s] - frame_s[s] for s in answered]
+    # once a target is held: the steady state, after the flight's first whole searches
+    held_s = [answer_s[s] - frame_s[s] for s in answered if held_from is not None and s > held_from]
     answers_s = sorted(answer_s[s] for s in answered)
     figures = {
         "frames": float(len(frame_s)),
@@ -68,6 +77,11 @@ def measure(out: Path, uav: str = "uav1") -> dict[str, float]:
         else float("nan"),
         "latency_p50_s": float(np.percentile(latency_s, 50)) if latency_s else float("nan"),
         "latency_p95_s": float(np.percentile(latency_s, 95)) if latency_s else float("nan"),
+        "scenes_before_held": float(sum(s <= held_from for s in answered))
+        if held_from is not None
+        else float(len(answered)),
+        "held_latency_p95_s": float(np.percentile(held_s, 95)) if held_s else float("nan"),
+        "latency_max_s": float(max(latency_s)) if latency_s else float("nan"),
     }
     for service, ms in sorted(busy_ms.items()):
         figures[f"{service}_ms"] = statistics.median(ms)
@@ -81,14 +95,21 @@ def main() -> None:
     parser.add_argument("--rates", type=float, nargs="+", default=[1.0, 2.5])
     parser.add_argument("--layout", default="local")
     parser.add_argument("--set", dest="overrides", action="append", default=[])
+    parser.add_argument(
+        "--keep",
+        type=Path,
+        help="write the paced runs' recordings here (default: a temporary folder)",
+    )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
+        if args.keep:
+            args.keep.mkdir(parents=True, exist_ok=True)
         flight = args.input or simulate(folder, args.frames)
         reference_ms = reference_workload_ms()
         print(f"reference workload ({REFERENCE_WORKLOAD}): {reference_ms:.1f} ms")
         for rate in args.rates:
-            out = folder / f"paced-{rate:g}.mcap"
+            out = (args.keep or folder) / f"paced-{rate:g}.mcap"
             result = run_recording(
                 flight, out, layout=args.layout, overrides=args.overrides, rate=rate
             )
@@ -102,7 +123,9 @@ def main() -> None:
                 f"({result.timeouts} unanswered); a scene every "
                 f"{f['scene_interval_s'] * 1e3:.0f} ms ("
                 f"{f['scene_interval_s'] * 1e3 / reference_ms:.1f} x reference); latency p50 "
-                f"{f['latency_p50_s'] * 1e3:.0f} ms, p95 {f['latency_p95_s'] * 1e3:.0f} ms\n"
+                f"{f['latency_p50_s'] * 1e3:.0f} ms, p95 {f['latency_p95_s'] * 1e3:.0f} ms, max "
+                f"{f['latency_max_s'] * 1e3:.0f} ms; once a target is held (after the first "
+                f"{f['scenes_before_held']:.0f} scenes) p95 {f['held_latency_p95_s'] * 1e3:.0f} ms\n"
                 f"    each service's own time per input (median): {busy}"
             )
 

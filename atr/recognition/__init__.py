@@ -15,6 +15,7 @@ from atr.recognition.matcher import (
     RecognitionResult,
     recognize,
     verify_places,
+    warm_up,
 )
 from atr.recognition.steps import (
     Correspondences,
@@ -64,6 +65,7 @@ __all__ = [
     "RecognitionConfig",
     "RecognitionResult",
     "verify_places",
+    "warm_up",
     "Template",
     "TemplateConfig",
     "Verification",

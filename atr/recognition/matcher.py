@@ -192,6 +192,23 @@ def recognize(
     return _compete(search, config, clock, stats)
 
 
+def warm_up(config: RecognitionConfig) -> None:
+    """Load the compiled kernels of the scene's normals and description and start their thread pools,
+    on a small synthetic cloud. A process pays for it once, in its first scene otherwise: the matcher
+    service's first whole search took 0.7 s where the next took 0.3 s (normals 247 ms, describe 140 ms).
+    """
+    rng = np.random.default_rng(0)
+    points_m = rng.uniform(-10.0, 10.0, (4000, 3)) * np.array([1.0, 1.0, 0.1])
+    normals = _backend.estimate_normals(points_m, config.template.normal_k, None)
+    _backend.describe(
+        config.descriptor,
+        points_m,
+        normals,
+        np.arange(0, len(points_m), 40),
+        config.support_radius_m,
+    )
+
+
 def _unexplained_places(search: _Search, templates: Sequence[Template]) -> list[Blob]:
     """The scene's vehicle-sized blobs with no accepted hypothesis of any template on them."""
     scene, config = search.scene, search.config

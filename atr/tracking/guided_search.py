@@ -12,7 +12,9 @@ is searched once every ``tracking.full_search_every_frames`` camera frames and w
 also lays every template at each live track's pose (``tracking.guided_whole_lays_all``), so a place a
 look-alike's template was given goes back to the template that explains it best. The dense SfM step of
 a guided scene matches only the cylinders' image windows, each in its own band of disparities
-(``tracking.guided_sfm``, ``atr.sfm.dense``).
+(``tracking.guided_sfm``, ``atr.sfm.dense``). With ``tracking.whole_search_lag_frames`` a whole search
+that falls due while a track is held runs beside the next scenes (``atr.tracking.lane``) and its
+detections join a scene that many frames later; the scene that started it is answered as a guided one.
 
 The cylinder's radius is ``tracking.k_search_radius`` x the largest footprint (length + width) of the
 templates laid at the track's place (``tracking.guided_class_cylinders``), and never less than they
@@ -26,10 +28,13 @@ searches whole clouds until it holds one again.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import Future
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
 
 import numpy as np
 
-from atr.errors import InputError
+from atr.errors import AtrError, InputError
 from atr.recognition import (
     RecognitionConfig,
     RecognitionResult,
@@ -38,8 +43,12 @@ from atr.recognition import (
     verify_places,
 )
 from atr.recognition.attention import largest_footprint_m
+from atr.recognition.matcher import Detection
+from atr.recognition.scene import validated_cloud
+from atr.recognition.template import model_extent_m
 from atr.regions import SearchRegion, points_in_regions
 from atr.tracking.config import TrackingConfig
+from atr.tracking.lane import InPlaceLane, WholeSearchLane
 from atr.tracking.tracker import Track, Tracker, TrackInput
 
 
@@ -80,6 +89,15 @@ class SearchSchedule:
         self._last_whole = None
 
 
+@dataclass
+class _PendingSearch:
+    """A whole search handed to the lane: the frame that started it and the one its detections join."""
+
+    frame_seq: int
+    join_frame_seq: int
+    result: Future[RecognitionResult]
+
+
 class GuidedSearch:
     """The matcher with track-guided search, scene by scene: a whole search (``recognize``), or a
     confirmation of the live tracks' poses on their neighbourhoods (``verify_places``). With
@@ -96,6 +114,7 @@ class GuidedSearch:
         templates: Sequence[Template],
         recognition: RecognitionConfig,
         tracking: TrackingConfig,
+        lane: WholeSearchLane | None = None,
     ) -> None:
         self.templates = list(templates)
         self.recognition = recognition
@@ -118,6 +137,13 @@ class GuidedSearch:
             else (0.0, 0.0)
         )
         self.schedule = SearchSchedule(tracking.full_search_every_frames)
+        # whole searches that answer late (whole_search_lag_frames): where they run, the one running
+        self._lagged = tracking.guided_search and tracking.whole_search_lag_frames > 0
+        self.lane: WholeSearchLane = lane if lane is not None else InPlaceLane()
+        self._pending: _PendingSearch | None = None
+        self._extent_m: dict[str, float] = {}  # each class's largest extent: one place's reach
+        for t in self.templates:
+            self._extent_m[t.target] = max(self._extent_m.get(t.target, 0.0), model_extent_m(t))
         # each live track's consecutive misses before the latest scene (guided_reacquire_misses)
         self._misses: dict[int, int] = {}
         self._reacquire = False  # a held target went unconfirmed: the next scene is searched whole
@@ -221,7 +247,10 @@ class GuidedSearch:
         Returns:
             ``recognize``'s or ``verify_places``'s result (``recognize``'s on the regions' points when a
             cloud matched in regions meets a matcher that holds no track); its stats gain "search":
-            "whole" or the number of regions, and "searched_points": the points it was given.
+            "whole" or the number of regions, and "searched_points": the points it was given. With
+            ``whole_search_lag_frames``: "whole_search_handed_over" when the scene started a whole
+            search in the lane, and in the scene it joins "joined_whole_search_of_frame" and
+            "late_detections" (those kept: not at a place this scene found itself).
 
         Raises:
             As ``recognize`` (the input is checked there). A stamp not after the previous scene's does
@@ -231,6 +260,15 @@ class GuidedSearch:
         # a cloud matched in regions is searched there; one matched whole (or not said) where the
         # schedule says: at the camera's pace sfm matches pairs whole until the guidance reaches it
         regions = list(cloud_regions) if cloud_regions else self.regions(frame_seq)
+        late, joined = self._join(frame_seq) if self._lagged else ([], None)
+        handed_over = False
+        if regions is None and self._lagged and self.held_regions() is not None:
+            # a track is held: the whole search runs beside the next scenes, this one is guided
+            handed_over = self._hand_over(
+                scene_points_m, seed, frame_seq, viewpoint_m, scene_sigma_m
+            )
+            if handed_over:
+                regions = self.held_regions()
         points, sigma = np.asarray(scene_points_m), scene_sigma_m
         well_formed = points.ndim == 2 and points.shape[1] == 3
         if not well_formed:
@@ -269,9 +307,79 @@ class GuidedSearch:
             )
         result.stats["search"] = "whole" if regions is None else len(regions)
         result.stats["searched_points"] = len(points)
+        if handed_over:
+            result.stats["whole_search_handed_over"] = True
+            whole_search = self._pending.result if self._pending is not None else None
+            if whole_search is not None and whole_search.done() and not whole_search.exception():
+                # run in place (the evaluation): its time is this scene's, as without the lag
+                for stage, ms in whole_search.result().stage_times_ms.items():
+                    result.stage_times_ms[stage] = result.stage_times_ms.get(stage, 0.0) + ms
+        if joined is not None:
+            # a vehicle parked where the lagged search found it is there still; one this scene
+            # found itself keeps this scene's fit
+            kept = [d for d in late if not any(self._same_place(d, p) for p in result.detections)]
+            result.detections = sorted(result.detections + kept, key=lambda d: -d.score)
+            result.stats["late_detections"] = len(kept)
+            result.stats["joined_whole_search_of_frame"] = joined
         if self.tracking.guided_search:
-            self._observe(result, stamp_ns, frame_seq, viewpoint_m, whole=regions is None)
+            whole = regions is None or handed_over
+            self._observe(result, stamp_ns, frame_seq, viewpoint_m, whole=whole)
         return result
+
+    def _hand_over(
+        self,
+        scene_points_m: np.ndarray,
+        seed: int,
+        frame_seq: int,
+        viewpoint_m: np.ndarray | None,
+        scene_sigma_m: np.ndarray | None,
+    ) -> bool:
+        """Hand a whole search to the lane, its detections to join the scene
+        ``whole_search_lag_frames`` frames on; False when the one before has not joined yet (a
+        period shorter than the lag). Raises InputError, as ``recognize`` does, for a bad cloud.
+        """
+        if self._pending is not None:
+            return False
+        points, sigma = validated_cloud(scene_points_m, scene_sigma_m, self.recognition)
+        lays_all = self.tracking.guided_whole_lays_all
+        future = self.lane.submit(
+            self.templates,
+            self.recognition,
+            points,
+            seed=seed,
+            viewpoint_m=viewpoint_m,
+            scene_sigma_m=sigma,
+            places_T_world_target=self.places()[0] if lays_all else [],
+        )
+        lag = self.tracking.whole_search_lag_frames
+        self._pending = _PendingSearch(frame_seq, frame_seq + lag, future)
+        return True
+
+    def _join(self, frame_seq: int) -> tuple[list[Detection], int | None]:
+        """The detections of the whole search in the lane when this frame is the one they join (waiting
+        for it if it still runs), and the frame it started at; else none. A search started at a later
+        frame than this one (another flight, a replay) is dropped.
+        """
+        pending = self._pending
+        if pending is None or frame_seq < pending.join_frame_seq:
+            if pending is not None and frame_seq < pending.frame_seq:
+                pending.result.cancel()
+                self._pending = None
+            return [], None
+        self._pending = None
+        try:
+            return pending.result.result().detections, pending.frame_seq
+        except (AtrError, BrokenProcessPool):
+            # a cloud recognize refused, or a worker that died: the scene keeps its own answer
+            return [], pending.frame_seq
+
+    def _same_place(self, a: Detection, b: Detection) -> bool:
+        """Whether two detections are one place, as the place competition judges it."""
+        reach_m = max(
+            self.recognition.nms_m,
+            0.5 * max(self._extent_m.get(a.target, 0.0), self._extent_m.get(b.target, 0.0)),
+        )
+        return bool(np.linalg.norm(a.T_world_target[:3, 3] - b.T_world_target[:3, 3]) < reach_m)
 
     def _observe(
         self,

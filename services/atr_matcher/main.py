@@ -5,7 +5,9 @@ subsampling at 0.3 m, smooth-surface filtering, description with the templates' 
 geometric-consistency grouping, RANSAC per group, ICP verification (with `tracking.guided_search`, between
 whole-cloud searches it only confirms the targets it already tracks: atr.tracking.guided_search; after each
 cloud it publishes on atr/{uav}/guidance the regions around the tracks it holds, and a cloud that says where
-the sfm matched it, in such regions or whole, is searched there). One Detections
+the sfm matched it, in such regions or whole, is searched there; with `tracking.whole_search_lag_frames`
+the whole searches run in a worker process of their own and their detections join a later scene's,
+atr.tracking.lane). One Detections
 message per cloud, stamped with the cloud's stamp_ns (an empty list when nothing is accepted). RANSAC is seeded from the cloud's last
 frame_seq, so a replay gives byte-identical detections (whatever clouds were lost before). A cloud put again
 (the same seq from the same sfm, after a restart elsewhere) gets no second answer. Templates come from
@@ -21,13 +23,15 @@ Example:
 from __future__ import annotations
 
 from collections import deque
+from contextlib import nullcontext
 
 import numpy as np
 
-from atr.recognition import Template
+from atr.recognition import Template, warm_up
 from atr.recognition.template import template_from_message
 from atr.regions import regions_from_array, regions_to_array
 from atr.tracking.guided_search import GuidedSearch
+from atr.tracking.lane import ProcessLane
 from bus import keys
 from bus.clouds import cloud_points
 from bus.service import effective_config, service_arguments, start_node
@@ -55,7 +59,16 @@ def main(argv: list[str] | None = None) -> int:
         None  # recognize, with track-guided search when tracking.guided_search
     )
     answered: deque[tuple[str | None, int]] = deque(maxlen=64)  # (source, seq) of the last clouds
-    with start_node("atr_matcher", args, inputs=[source_key]) as node:
+    tracking = config.tracking
+    # whole searches that answer late run in a process of their own, so guided scenes never wait
+    lagged = tracking.guided_search and tracking.whole_search_lag_frames > 0
+    with (
+        start_node("atr_matcher", args, inputs=[source_key]) as node,
+        ProcessLane() if lagged else nullcontext() as lane,
+    ):
+        if lane is not None:
+            lane.warm(recognition)  # beside the first scenes: the first hand-over is frames away
+        warm_up(recognition)  # the first scene would pay for it: its latency, and every next one's
         node.ready()
         for message in node.events():
             with node.handling(message):
@@ -77,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
                     node.republish(keys.detections(args.uav), message.stamp_ns)
                     continue
                 if search is None:
-                    search = GuidedSearch(templates, recognition, config.tracking)
+                    search = GuidedSearch(templates, recognition, tracking, lane)
                 sigma = cloud.get("sigma_m")
                 result = search(
                     cloud_points(cloud).astype(np.float64),
@@ -91,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
                     if "regions_m" in cloud
                     else None,
                 )
-                if config.tracking.guided_search:
+                if tracking.guided_search:
                     # before the Detections: in lock-step the sfm has it before the next frame
                     node.publish(
                         keys.guidance(args.uav),

@@ -124,3 +124,39 @@ def test_track_guided_search_through_the_services_is_deterministic_and_confirms(
     assert all(len(clouds[k]["points_m"]) < min(whole_points) for k in windowed), [
         len(cloud["points_m"]) for cloud in clouds
     ]
+
+
+def test_lagged_whole_searches_through_the_services_are_deterministic(tmp_path):
+    """With `tracking.whole_search_lag_frames` the matcher answers a scene that a held track makes
+    due a whole search by confirming its tracks, while the whole search runs in a worker process of
+    its own and answers a later scene: the same recording still gives the same bytes, and the T-72
+    is found throughout."""
+    flight = simulate_small_flight(tmp_path / "flight.mcap", frames=7)
+    outs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
+    lagged = [
+        *("--set", "tracking.guided_search=true", "--set", "tracking.full_search_every_frames=3"),
+        *("--set", "tracking.whole_search_lag_frames=2"),
+    ]
+    done = [
+        atr("run", str(flight), "--out", str(out), *SMALL_CAMERA, *lagged, timeout_s=900)
+        for out in outs
+    ]
+    assert all(d.returncode == 0 for d in done), [d.stdout + d.stderr for d in done]
+    first, second = (data_messages(p) for p in outs)
+    assert first == second
+    detections = [codec.unpack(m)["detections"] for m in first[keys.detections("uav1")]]
+    clouds = [codec.unpack(m) for m in first[keys.sfm_cloud("uav1")]]
+    stages = []
+    with outs[0].open("rb") as stream:
+        for _, channel, message in make_reader(stream).iter_messages():
+            if channel.topic == "atr/uav1/atr_matcher/timing":
+                stages.append(codec.unpack(message.data)["stages_ms"])
+    assert len(detections) == len(clouds) == len(stages) == 7
+    assert all(any(d["target"] == "t72" for d in answer) for answer in detections[1:]), detections
+    # frames 1 and 2 are searched whole and answered by it (no track is held yet); frame 5, three
+    # frames after frame 2, is matched whole too, but answered at the held T-72's place while its
+    # whole search runs aside
+    whole = [k for k in range(1, 7) if len(clouds[k].get("regions_m", ())) == 0]
+    assert whole == [1, 2, 5], [len(c.get("regions_m", ())) for c in clouds]
+    assert stages[1]["describe"] > 0 and stages[2]["describe"] > 0
+    assert stages[5]["describe"] == 0.0 and stages[5]["icp"] > 0

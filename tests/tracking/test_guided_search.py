@@ -286,3 +286,107 @@ def test_a_held_track_s_cylinder_holds_the_classes_held_at_its_place(world) -> N
     # two classes held at one place: its cylinder holds the larger of them
     (tank2, truck2), _ = regions(True, tank_m + np.array([3.0, 0.0, 0.0]))
     assert tank2.radius_m == truck2.radius_m == pytest.approx(max(tank.radius_m, truck.radius_m))
+
+
+def _lagged_flight(search: GuidedSearch, scene: np.ndarray, frames: range) -> list:
+    return [
+        search(scene, seed=k, stamp_ns=k * SCENE_S, frame_seq=k, viewpoint_m=VIEWPOINT)
+        for k in frames
+    ]
+
+
+def _hold_the_truck(search: GuidedSearch) -> None:
+    """The truck's track held before the flight's first scene (seen twice: confirmed)."""
+    truck = TrackInput("truck6x6", TRUCK_SHIFT_M, yaw_rad=0.2, score=0.8)
+    for stamp_ns in (0, SCENE_S // 2):
+        search.tracker.update([truck], stamp_ns)
+
+
+def _tank_found_one(detection, position_m) -> bool:
+    return (
+        detection.target == "t72"
+        and np.linalg.norm(detection.T_world_target[:3, 3] - position_m) < 2.0
+    )
+
+
+def test_a_lagged_whole_search_joins_the_scene_its_lag_names(world) -> None:
+    """With whole_search_lag_frames, while a track is held the scene that starts a whole search is
+    answered as a guided one; the whole search's detections join the scene `lag` frames later (here
+    the tank's, which no track held)."""
+    cfg, templates, scene, tank_m = world
+    tracking = TrackingConfig(
+        guided_search=True, full_search_every_frames=6, whole_search_lag_frames=2
+    )
+    search = GuidedSearch(templates, cfg, tracking)
+    _hold_the_truck(search)
+    results = _lagged_flight(search, scene, range(1, 10))
+    found = [_tank_found(r, tank_m) for r in results]
+    joined = [r.stats.get("joined_whole_search_of_frame") for r in results]
+    handed_over = [r.stats.get("whole_search_handed_over", False) for r in results]
+    # frames 1 and 7 (six frames on) are due a whole search: handed over, answered at the truck's place
+    assert handed_over == [True, False, False, False, False, False, True, False, False]
+    assert results[0].stats["search"] == 1 and results[0].stats["searched_points"] < len(scene)
+    assert not found[0] and not found[1]
+    # frame 3 is given the tank by frame 1's search; the tank is confirmed where it stands after
+    assert joined == [None, None, 1, None, None, None, None, None, 7], joined
+    assert found[2] and results[2].stats["late_detections"] >= 1
+    assert all(found[2:]), found
+    # a late detection at a place the scene's own search found is not given twice
+    assert results[8].stats["late_detections"] == 0
+    assert all(sum(_tank_found_one(d, tank_m) for d in r.detections) <= 1 for r in results)
+
+
+def test_a_lagged_flight_answers_its_own_whole_scenes_while_no_track_is_held(world) -> None:
+    """Until a track is held every scene is searched whole and answered by that search, as without
+    the lag: a look-alike's template may win a target's place in one whole search and lose it in the
+    next, which a guided scene, laying only the classes held there, would not give it."""
+    cfg, templates, scene, tank_m = world
+    tracking = TrackingConfig(
+        guided_search=True, full_search_every_frames=6, whole_search_lag_frames=2
+    )
+    results = _lagged_flight(GuidedSearch(templates, cfg, tracking), scene, range(1, 4))
+    assert [r.stats["search"] == "whole" for r in results] == [True, True, False]
+    assert not any(r.stats.get("whole_search_handed_over") for r in results)
+    assert all(_tank_found(r, tank_m) for r in results)
+
+
+def test_a_lagged_search_answers_the_same_in_a_process_of_its_own(world) -> None:
+    """The lane a whole search runs in changes when it ends, not what any scene is answered."""
+    from atr.tracking.lane import ProcessLane
+
+    cfg, templates, scene, _ = world
+    tracking = TrackingConfig(
+        guided_search=True, full_search_every_frames=3, whole_search_lag_frames=2
+    )
+
+    def flight(lane: ProcessLane | None) -> list:
+        search = GuidedSearch(templates, cfg, tracking, lane)
+        _hold_the_truck(search)
+        return _lagged_flight(search, scene, range(1, 8))
+
+    in_place = flight(None)
+    with ProcessLane() as lane:
+        in_worker = flight(lane)
+    assert [[d.to_dict() for d in r.detections] for r in in_place] == [
+        [d.to_dict() for d in r.detections] for r in in_worker
+    ]
+    assert in_worker[2].stats["late_detections"] >= 1
+
+
+def test_a_lagged_search_of_another_flight_is_dropped(world) -> None:
+    """A replay starting at frame 1 again while a whole search of frame 5 waits: the search is dropped
+    (it would otherwise join frame 9 of the new flight, and hold the lane until then)."""
+    cfg, templates, scene, tank_m = world
+    tracking = TrackingConfig(
+        guided_search=True, full_search_every_frames=20, whole_search_lag_frames=4
+    )
+    search = GuidedSearch(templates, cfg, tracking)
+    _hold_the_truck(search)
+    first = _lagged_flight(search, scene, range(5, 6))  # frame 5's whole search waits for frame 9
+    assert first[0].stats["whole_search_handed_over"]
+    again = search(scene, seed=1, stamp_ns=SCENE_S, frame_seq=1, viewpoint_m=VIEWPOINT)
+    assert again.stats["whole_search_handed_over"]  # its own, for frame 5 of this flight
+    assert "joined_whole_search_of_frame" not in again.stats
+    later = _lagged_flight(search, scene, range(2, 6))
+    assert [r.stats.get("joined_whole_search_of_frame") for r in later] == [None, None, None, 1]
+    assert all(_tank_found(r, tank_m) for r in later)
