@@ -106,13 +106,16 @@ class TrackingConfig:
             held does not answer the scene that starts it: that scene is answered as a guided one (the
             held tracks confirmed where they stand), the whole search runs beside the next scenes
             (``atr.tracking.lane``; in the matcher service a worker process of its own), and its
-            detections join the scene this many camera frames later, less any at a place that scene
-            found itself. The joining scene is fixed by frame numbers, so the answers do not depend
-            on how fast the search ran. While no track is held a whole search answers its own scene:
-            handing those over too lost the first scenes of every flight and let a look-alike keep a
-            target's place (docs/tracking.md, "Whole searches that answer late"). A whole search
-            among the family takes 0.25-0.9 s, which at ten frames a second held three to six scenes
-            behind it. 0: every whole search answers its own scene.
+            detections join the scene this many camera frames later: added where that scene found
+            nothing, deciding the class where it found another (``GuidedSearch``). The joining scene
+            is fixed by frame numbers, so the answers do not depend on how fast the search ran. While
+            no track is held a whole search answers its own scene: handing those over too lost the
+            first scenes of every flight and let a look-alike keep a target's place. 6: 0.6 s at ten
+            frames a second, more than a whole search's 0.25-0.7 s beside the other services, so a
+            scene seldom waits for one. Chosen on tuning seeds 101-102 (docs/tracking.md, "Whole
+            searches that answer late"): every 5th scene, the T-72's F1 0.956 -> 0.957; every scene,
+            pooled 0.925 -> 0.918, the target that a whole search finds while a confuser's track is
+            held being found six frames later. 0: every whole search answers its own scene.
         k_search_radius: a held track's search cylinder's radius / the largest footprint (length +
             width) of the templates laid at its place (guided_class_cylinders; else of every template):
             a vehicle at the track's place is inside at any heading (its half-diagonal is under half
@@ -146,7 +149,7 @@ class TrackingConfig:
     guided_whole_lays_all: bool = True
     guided_reacquire_misses: int = bounded(0, ge=0)
     full_search_every_frames: int = bounded(20, ge=1)
-    whole_search_lag_frames: int = bounded(0, ge=0)
+    whole_search_lag_frames: int = bounded(6, ge=0)
     k_search_radius: float = bounded(0.6, gt=0)
 
     def __post_init__(self) -> None:

@@ -67,7 +67,8 @@ def main(argv: list[str] | None = None) -> int:
         ProcessLane() if lagged else nullcontext() as lane,
     ):
         if lane is not None:
-            lane.warm(recognition)  # beside the first scenes: the first hand-over is frames away
+            # before the first scene: warming beside it took a core from the flight's first whole searches
+            lane.warm(recognition).result()
         warm_up(recognition)  # the first scene would pay for it: its latency, and every next one's
         node.ready()
         for message in node.events():

@@ -1,4 +1,7 @@
-"""Track-guided search: the held tracks' neighbourhoods between whole-cloud searches, and the same answer."""
+"""Track-guided search: the held tracks' neighbourhoods between whole-cloud searches, and the same answer.
+
+The tests before the lagged ones set ``whole_search_lag_frames=0``: a whole search answers its own scene.
+"""
 
 from __future__ import annotations
 
@@ -57,7 +60,9 @@ def _tank_found(result, position_m) -> bool:
 
 def test_held_tracks_are_searched_between_whole_searches(world) -> None:
     cfg, templates, scene, tank_m = world
-    tracking = TrackingConfig(guided_search=True, full_search_every_frames=3)
+    tracking = TrackingConfig(
+        guided_search=True, full_search_every_frames=3, whole_search_lag_frames=0
+    )
     search = GuidedSearch(templates, cfg, tracking)
     searches, points = [], []
     for k in range(1, 6):
@@ -130,7 +135,9 @@ def test_a_cloud_matched_whole_is_searched_where_the_schedule_says(world) -> Non
     that holds its target confirms it in those clouds, and searches whole only when its schedule says."""
     cfg, templates, scene, tank_m = world
     search = GuidedSearch(
-        templates, cfg, TrackingConfig(guided_search=True, full_search_every_frames=3)
+        templates,
+        cfg,
+        TrackingConfig(guided_search=True, full_search_every_frames=3, whole_search_lag_frames=0),
     )
     searches = []
     for k in range(1, 6):
@@ -151,7 +158,10 @@ def test_the_scene_after_a_held_target_went_unconfirmed_is_searched_whole(world)
     cfg, templates, scene, tank_m = world
     for reacquire in (True, False):
         tracking = TrackingConfig(
-            guided_search=True, full_search_every_frames=10, guided_reacquire_misses=int(reacquire)
+            guided_search=True,
+            full_search_every_frames=10,
+            guided_reacquire_misses=int(reacquire),
+            whole_search_lag_frames=0,
         )
         search = GuidedSearch(templates, cfg, tracking)
         for k in (1, 2):  # two whole scenes confirm the tank
@@ -173,7 +183,10 @@ def test_a_whole_search_also_lays_every_template_at_the_held_places(world) -> No
     cfg, templates, scene, tank_m = world
     for lays_all in (True, False):
         tracking = TrackingConfig(
-            guided_search=True, full_search_every_frames=3, guided_whole_lays_all=lays_all
+            guided_search=True,
+            full_search_every_frames=3,
+            guided_whole_lays_all=lays_all,
+            whole_search_lag_frames=0,
         )
         search = GuidedSearch(templates, cfg, tracking)
         for k in (1, 2):  # the tank's place held as the truck's: the look-alike won it twice
@@ -207,7 +220,9 @@ def test_search_radius_is_a_multiple_of_the_largest_footprint(world) -> None:
 def test_a_tentative_track_is_searched_beside_a_held_one(world) -> None:
     cfg, templates, _, _ = world
     search = GuidedSearch(
-        templates, cfg, TrackingConfig(guided_search=True, full_search_every_frames=3)
+        templates,
+        cfg,
+        TrackingConfig(guided_search=True, full_search_every_frames=3, whole_search_lag_frames=0),
     )
     truck = TrackInput("truck6x6", np.array([5.0, -8.0, 0.0]), 0.5)
     tank = TrackInput("t72", np.array([17.6, 11.8, 0.0]), 0.9)
@@ -390,3 +405,28 @@ def test_a_lagged_search_of_another_flight_is_dropped(world) -> None:
     later = _lagged_flight(search, scene, range(2, 6))
     assert [r.stats.get("joined_whole_search_of_frame") for r in later] == [None, None, None, 1]
     assert all(_tank_found(r, tank_m) for r in later)
+
+
+def test_a_joined_whole_search_decides_the_class_of_a_place_it_shares(world) -> None:
+    """At a place the scene found too, the scene's fit stays when the classes agree; when they do not,
+    the whole search's class wins (it contested the place with every template); elsewhere its
+    detections are added."""
+    from atr.recognition import Detection
+
+    cfg, templates, _, _ = world
+    search = GuidedSearch(templates, cfg, TrackingConfig(whole_search_lag_frames=2))
+
+    def at(target: str, x_m: float, score: float) -> Detection:
+        T = np.eye(4)
+        T[0, 3] = x_m
+        return Detection(target, DESC, T, score, 0.9, 50)
+
+    own = [at("t72", 0.0, 0.9), at("truck6x6", 30.0, 0.8)]
+    late = [at("t72", 0.4, 0.95), at("t72", 30.5, 0.7), at("truck6x6", 60.0, 0.6)]
+    joined, kept = search._joined(own, late)
+    assert kept == 2
+    assert [(d.target, d.T_world_target[0, 3]) for d in joined] == [
+        ("t72", 0.0),  # the scene's own fit: the same class
+        ("t72", 30.5),  # the whole search's class at the truck's place
+        ("truck6x6", 60.0),  # a place only the whole search saw
+    ]
