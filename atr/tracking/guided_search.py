@@ -48,7 +48,7 @@ from atr.recognition.scene import validated_cloud
 from atr.recognition.template import model_extent_m
 from atr.regions import SearchRegion, points_in_regions
 from atr.tracking.config import TrackingConfig
-from atr.tracking.lane import InPlaceLane, WholeSearchLane
+from atr.tracking.lane import InPlaceLane, WholeSearch, WholeSearchLane
 from atr.tracking.tracker import Track, Tracker, TrackInput
 
 
@@ -262,13 +262,14 @@ class GuidedSearch:
         regions = list(cloud_regions) if cloud_regions else self.regions(frame_seq)
         late, joined = self._join(frame_seq) if self._lagged else ([], None)
         handed_over = False
-        if regions is None and self._lagged and self.held_regions() is not None:
-            # a track is held: the whole search runs beside the next scenes, this one is guided
+        live = self.held_regions()
+        if regions is None and self._lagged and live is not None:
+            # a track is held: the whole search runs beside the next scenes (unless the one before
+            # still does), and this scene is guided
             handed_over = self._hand_over(
                 scene_points_m, seed, frame_seq, viewpoint_m, scene_sigma_m
             )
-            if handed_over:
-                regions = self.held_regions()
+            regions = live
         points, sigma = np.asarray(scene_points_m), scene_sigma_m
         well_formed = points.ndim == 2 and points.shape[1] == 3
         if not well_formed:
@@ -339,15 +340,13 @@ class GuidedSearch:
             return False
         points, sigma = validated_cloud(scene_points_m, scene_sigma_m, self.recognition)
         lays_all = self.tracking.guided_whole_lays_all
-        future = self.lane.submit(
-            self.templates,
-            self.recognition,
-            points,
-            seed=seed,
-            viewpoint_m=viewpoint_m,
-            scene_sigma_m=sigma,
-            places_T_world_target=self.places()[0] if lays_all else [],
-        )
+        options = {
+            "seed": seed,
+            "viewpoint_m": viewpoint_m,
+            "scene_sigma_m": sigma,
+            "places_T_world_target": self.places()[0] if lays_all else [],
+        }
+        future = self.lane.submit(WholeSearch(self.templates, self.recognition, points, options))
         lag = self.tracking.whole_search_lag_frames
         self._pending = _PendingSearch(frame_seq, frame_seq + lag, future)
         return True

@@ -25,7 +25,8 @@ import time
 from collections.abc import Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from typing import Any, Protocol
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -33,38 +34,28 @@ from atr.errors import AtrError
 from atr.recognition import RecognitionConfig, RecognitionResult, Template, recognize, warm_up
 
 
-class WholeSearchLane(Protocol):
-    """Runs ``recognize`` on a whole cloud and gives its result as a future."""
+@dataclass(frozen=True)
+class WholeSearch:
+    """One whole search: ``recognize(scene_points_m, templates, config, **options)``."""
 
-    def submit(
-        self,
-        templates: Sequence[Template],
-        config: RecognitionConfig,
-        scene_points_m: np.ndarray,
-        **options: Any,
-    ) -> Future[RecognitionResult]:
-        """Start ``recognize(scene_points_m, templates, config, **options)``."""
-        ...
+    templates: Sequence[Template]
+    config: RecognitionConfig
+    scene_points_m: np.ndarray
+    options: dict[str, Any]
 
-    def close(self) -> None:
-        """Stop; a search still running is abandoned."""
-        ...
+    def run(self) -> RecognitionResult:
+        """Search, here."""
+        return recognize(self.scene_points_m, self.templates, self.config, **self.options)
 
 
 class InPlaceLane:
     """Runs each whole search when it is submitted, in this process."""
 
-    def submit(
-        self,
-        templates: Sequence[Template],
-        config: RecognitionConfig,
-        scene_points_m: np.ndarray,
-        **options: Any,
-    ) -> Future[RecognitionResult]:
-        """Run ``recognize`` now; the future holds its result or its AtrError."""
+    def submit(self, search: WholeSearch) -> Future[RecognitionResult]:
+        """Run the search now; the future holds its result or its AtrError."""
         done: Future[RecognitionResult] = Future()
         try:
-            done.set_result(recognize(scene_points_m, templates, config, **options))
+            done.set_result(search.run())
         except AtrError as error:
             done.set_exception(error)
         return done
@@ -74,19 +65,14 @@ class InPlaceLane:
 
 
 # the worker process's templates: sent with its first search, kept for the next ones
-_lane_templates: list[Template] = []
+_lane_templates: Sequence[Template] = ()
 
 
-def _search_in_worker(
-    templates: Sequence[Template] | None,
-    config: RecognitionConfig,
-    scene_points_m: np.ndarray,
-    options: dict[str, Any],
-) -> RecognitionResult:
+def _search_in_worker(search: WholeSearch, templates_sent: bool) -> RecognitionResult:
     global _lane_templates
-    if templates is not None:
-        _lane_templates = list(templates)
-    return recognize(scene_points_m, _lane_templates, config, **options)
+    if templates_sent:
+        _lane_templates = search.templates
+    return replace(search, templates=_lane_templates).run()
 
 
 def _die_with(parent_pid: int) -> None:
@@ -130,18 +116,14 @@ class ProcessLane:
             pool.submit(warm_up, config)
         return pool.submit(os.getpid)
 
-    def submit(
-        self,
-        templates: Sequence[Template],
-        config: RecognitionConfig,
-        scene_points_m: np.ndarray,
-        **options: Any,
-    ) -> Future[RecognitionResult]:
-        """Queue ``recognize`` in the worker."""
+    def submit(self, search: WholeSearch) -> Future[RecognitionResult]:
+        """Queue the search in the worker."""
         pool = self._start()
-        send = None if templates is self._sent else templates
-        future = pool.submit(_search_in_worker, send, config, scene_points_m, options)
-        self._sent = templates
+        send = search.templates is not self._sent
+        future = pool.submit(
+            _search_in_worker, replace(search, templates=()) if not send else search, send
+        )
+        self._sent = search.templates
         future.add_done_callback(self._forget_if_broken)
         return future
 
@@ -166,3 +148,7 @@ class ProcessLane:
         if not future.cancelled() and isinstance(future.exception(), BrokenProcessPool):
             self._pool = None  # the worker died: the next search starts a new one
             self._sent = None
+
+
+WholeSearchLane = InPlaceLane | ProcessLane
+"""Where a whole search runs."""

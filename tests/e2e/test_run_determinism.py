@@ -34,6 +34,30 @@ def data_messages(path: Path) -> dict[str, list[bytes]]:
     return out
 
 
+def run_twice_identically(flight: Path, folder: Path, *settings: str) -> dict[str, list[bytes]]:
+    """`atr run` the flight twice with these settings; the first run's data messages, after checking
+    that both runs succeeded with the same bytes. The first run's recording is `folder`/a.mcap."""
+    outs = [folder / "a.mcap", folder / "b.mcap"]
+    done = [
+        atr("run", str(flight), "--out", str(out), *SMALL_CAMERA, *settings, timeout_s=900)
+        for out in outs
+    ]
+    assert all(d.returncode == 0 for d in done), [d.stdout + d.stderr for d in done]
+    first, second = (data_messages(p) for p in outs)
+    assert first == second
+    return first
+
+
+def matcher_stages(path: Path) -> list[dict[str, float]]:
+    """The matcher's stage times per scene, in order."""
+    stages = []
+    with path.open("rb") as stream:
+        for _, channel, message in make_reader(stream).iter_messages():
+            if channel.topic == "atr/uav1/atr_matcher/timing":
+                stages.append(codec.unpack(message.data)["stages_ms"])
+    return stages
+
+
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory) -> Path:
     return simulate_small_flight(tmp_path_factory.mktemp("flight") / "flight.mcap", frames=4)
@@ -90,21 +114,9 @@ def test_track_guided_search_through_the_services_is_deterministic_and_confirms(
     """With `tracking.guided_search` the matcher's answers depend on the scenes before; the same
     recording still gives the same bytes, and the scenes after a confirmed track only confirm it."""
     flight = simulate_small_flight(tmp_path / "flight.mcap", frames=7)
-    outs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
-    guided = ("--set", "tracking.guided_search=true")
-    done = [
-        atr("run", str(flight), "--out", str(out), *SMALL_CAMERA, *guided, timeout_s=900)
-        for out in outs
-    ]
-    assert all(d.returncode == 0 for d in done), [d.stdout + d.stderr for d in done]
-    first, second = (data_messages(p) for p in outs)
-    assert first == second
-    confirmed = []  # (stages, detections) of the matcher's scenes, in order
+    first = run_twice_identically(flight, tmp_path, "--set", "tracking.guided_search=true")
     detections = [codec.unpack(m)["detections"] for m in first[keys.detections("uav1")]]
-    with outs[0].open("rb") as stream:
-        for _, channel, message in make_reader(stream).iter_messages():
-            if channel.topic == "atr/uav1/atr_matcher/timing":
-                confirmed.append(codec.unpack(message.data)["stages_ms"])
+    confirmed = matcher_stages(tmp_path / "a.mcap")  # the matcher's scenes, in order
     assert len(confirmed) == len(detections) == 7
     guided_scenes = [
         k for k, stages in enumerate(confirmed) if stages["describe"] == 0.0 and stages["icp"] > 0
@@ -132,25 +144,15 @@ def test_lagged_whole_searches_through_the_services_are_deterministic(tmp_path):
     its own and answers a later scene: the same recording still gives the same bytes, and the T-72
     is found throughout."""
     flight = simulate_small_flight(tmp_path / "flight.mcap", frames=7)
-    outs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
-    lagged = [
+    first = run_twice_identically(
+        flight,
+        tmp_path,
         *("--set", "tracking.guided_search=true", "--set", "tracking.full_search_every_frames=3"),
         *("--set", "tracking.whole_search_lag_frames=2"),
-    ]
-    done = [
-        atr("run", str(flight), "--out", str(out), *SMALL_CAMERA, *lagged, timeout_s=900)
-        for out in outs
-    ]
-    assert all(d.returncode == 0 for d in done), [d.stdout + d.stderr for d in done]
-    first, second = (data_messages(p) for p in outs)
-    assert first == second
+    )
     detections = [codec.unpack(m)["detections"] for m in first[keys.detections("uav1")]]
     clouds = [codec.unpack(m) for m in first[keys.sfm_cloud("uav1")]]
-    stages = []
-    with outs[0].open("rb") as stream:
-        for _, channel, message in make_reader(stream).iter_messages():
-            if channel.topic == "atr/uav1/atr_matcher/timing":
-                stages.append(codec.unpack(message.data)["stages_ms"])
+    stages = matcher_stages(tmp_path / "a.mcap")
     assert len(detections) == len(clouds) == len(stages) == 7
     assert all(any(d["target"] == "t72" for d in answer) for answer in detections[1:]), detections
     # frames 1 and 2 are searched whole and answered by it (no track is held yet); frame 5, three

@@ -8,11 +8,12 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 from atr.errors import InputError
 from atr.recognition import RecognitionConfig
-from atr.tracking.lane import InPlaceLane, ProcessLane
+from atr.tracking.lane import InPlaceLane, ProcessLane, WholeSearch
 
 
 def _alive(pid: int) -> bool:
@@ -64,7 +65,7 @@ def test_a_closed_lane_stops_its_worker() -> None:
 
 @pytest.mark.parametrize("lane", [InPlaceLane(), ProcessLane()], ids=["in place", "process"])
 def test_a_bad_cloud_s_error_comes_back_through_the_future(lane) -> None:
-    future = lane.submit([], RecognitionConfig(), [[1.0, 2.0]], seed=0)
+    future = lane.submit(WholeSearch([], RecognitionConfig(), np.array([[1.0, 2.0]]), {"seed": 0}))
     with pytest.raises(InputError, match=r"\(N, 3\)"):
         future.result(timeout=120)
     lane.close()
