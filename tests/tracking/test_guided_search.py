@@ -430,3 +430,30 @@ def test_a_joined_whole_search_decides_the_class_of_a_place_it_shares(world) -> 
         ("t72", 30.5),  # the whole search's class at the truck's place
         ("truck6x6", 60.0),  # a place only the whole search saw
     ]
+
+
+def test_a_lane_whose_worker_died_answers_nothing_late_and_starts_again(world) -> None:
+    """The worker killed with a search in hand: the scene that search joins keeps its own answer, and
+    the next whole search starts a new worker and joins as usual."""
+    import os
+    import signal
+
+    from atr.tracking.lane import ProcessLane
+
+    cfg, templates, scene, tank_m = world
+    tracking = TrackingConfig(
+        guided_search=True, full_search_every_frames=6, whole_search_lag_frames=2
+    )
+    with ProcessLane() as lane:
+        worker = lane.warm(cfg).result()
+        search = GuidedSearch(templates, cfg, tracking, lane)
+        _hold_the_truck(search)
+        first = _lagged_flight(search, scene, range(1, 2))  # frame 1's search goes to the worker
+        assert first[0].stats["whole_search_handed_over"]
+        os.kill(worker, signal.SIGKILL)
+        rest = _lagged_flight(search, scene, range(2, 10))
+    joined = [r.stats.get("joined_whole_search_of_frame") for r in rest]
+    assert joined == [None, 1, None, None, None, None, None, 7]
+    assert rest[1].stats["late_detections"] == 0  # frame 1's search died with its worker
+    assert rest[5].stats["whole_search_handed_over"]  # frame 7's, to a new worker
+    assert _tank_found(rest[7], tank_m)
