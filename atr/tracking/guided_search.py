@@ -262,8 +262,7 @@ class GuidedSearch:
         regions = list(cloud_regions) if cloud_regions else self.regions(frame_seq)
         late, joined = self._join(frame_seq) if self._lagged else ([], None)
         handed_over = False
-        live = self.held_regions()
-        if regions is None and self._lagged and live is not None:
+        if regions is None and self._lagged and (live := self.held_regions()) is not None:
             # a track is held: the whole search runs beside the next scenes (unless the one before
             # still does), and this scene is guided
             handed_over = self._hand_over(
