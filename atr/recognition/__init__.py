@@ -1,6 +1,11 @@
 """3D ATR module (paper §II-A offline templates, §II-B-2 online matcher): pure functions on numpy arrays."""
 
-from atr.recognition.competition import Candidate, CompetitionSettings, compete_for_places
+from atr.recognition.competition import (
+    Candidate,
+    CompetitionSettings,
+    compete_for_places,
+    same_place,
+)
 from atr.recognition.config import (
     DESCRIPTORS,
     GroundConfig,
@@ -64,6 +69,7 @@ __all__ = [
     "RansacSettings",
     "RecognitionConfig",
     "RecognitionResult",
+    "same_place",
     "verify_places",
     "warm_up",
     "Template",

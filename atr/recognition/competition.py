@@ -115,8 +115,14 @@ def compete_for_places(
 
 
 def _same_place(a: Candidate, b: Candidate, settings: CompetitionSettings) -> bool:
-    reach_m = max(settings.nms_m, 0.5 * max(a.extent_m, b.extent_m))
-    return bool(np.linalg.norm(a.centre_m - b.centre_m) < reach_m)
+    return same_place(a.centre_m, b.centre_m, max(a.extent_m, b.extent_m), settings.nms_m)
+
+
+def same_place(a_m: np.ndarray, b_m: np.ndarray, extent_m: float, nms_m: float) -> bool:
+    """Whether two vehicles placed at these points are at one place: closer than ``nms_m`` or half the
+    larger one's extent, whichever is more.
+    """
+    return bool(np.linalg.norm(np.asarray(a_m) - np.asarray(b_m)) < max(nms_m, 0.5 * extent_m))
 
 
 def _inside(c: Candidate, scene: PointSet, ground_slab_m: float) -> np.ndarray:

@@ -36,14 +36,15 @@ import numpy as np
 
 from atr.errors import AtrError, InputError
 from atr.recognition import (
+    Detection,
     RecognitionConfig,
     RecognitionResult,
     Template,
     recognize,
+    same_place,
     verify_places,
 )
 from atr.recognition.attention import largest_footprint_m
-from atr.recognition.matcher import Detection
 from atr.recognition.scene import validated_cloud
 from atr.recognition.template import model_extent_m
 from atr.regions import SearchRegion, points_in_regions
@@ -310,7 +311,8 @@ class GuidedSearch:
         if handed_over:
             result.stats["whole_search_handed_over"] = True
             whole_search = self._pending.result if self._pending is not None else None
-            if whole_search is not None and whole_search.done() and not whole_search.exception():
+            in_place = isinstance(self.lane, InPlaceLane) and whole_search is not None
+            if in_place and not whole_search.exception():
                 # run in place (the evaluation): its time is this scene's, as without the lag
                 for stage, ms in whole_search.result().stage_times_ms.items():
                     result.stage_times_ms[stage] = result.stage_times_ms.get(stage, 0.0) + ms
@@ -375,8 +377,8 @@ class GuidedSearch:
         too, the scene keeps its own fit when the classes agree (it is the newer view); when they do
         not, the whole search's class wins: it laid every template there and searched with the
         descriptors, where this scene laid only the classes held at the place, so a look-alike that
-        holds a target's place would otherwise keep it (tuning seed 101, every scene, the T-72 at
-        100 m, 30 degrees: 33 true positives so, 53 with this rule, 59 without the lag).
+        holds a target's place would otherwise keep it (docs/tracking.md, "Whole searches that answer
+        late").
         """
         kept = [d for d in late if not any(self._same_place(d, o) for o in own)]
         replaced = [
@@ -388,11 +390,10 @@ class GuidedSearch:
 
     def _same_place(self, a: Detection, b: Detection) -> bool:
         """Whether two detections are one place, as the place competition judges it."""
-        reach_m = max(
-            self.recognition.nms_m,
-            0.5 * max(self._extent_m.get(a.target, 0.0), self._extent_m.get(b.target, 0.0)),
+        extent_m = max(self._extent_m.get(a.target, 0.0), self._extent_m.get(b.target, 0.0))
+        return same_place(
+            a.T_world_target[:3, 3], b.T_world_target[:3, 3], extent_m, self.recognition.nms_m
         )
-        return bool(np.linalg.norm(a.T_world_target[:3, 3] - b.T_world_target[:3, 3]) < reach_m)
 
     def _observe(
         self,
