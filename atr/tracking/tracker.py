@@ -86,7 +86,8 @@ class Track:
         target: class of the detections it fuses; with ``TrackingConfig.class_votes``, the class with
             the most evidence so far (the first to reach it on a tie).
         state: "tentative" (not yet M hits in N scenes), "confirmed" (seen this scene, confirmed), or
-            "lost" (confirmed, missed the latest scene; deleted after `delete_after_misses`).
+            "lost" (confirmed, missed the latest scene; deleted after `delete_after_misses`, or
+            `miss_patience_per_hit` x hits if more).
         position_m: (3,) fused position in the world frame, metres: the filter's mean, or with
             ``TrackingConfig.fuse_median`` the geometric median of `places_m`.
         P_position: (3, 3) its covariance, square metres (the filter's, also under ``fuse_median``).
@@ -269,7 +270,8 @@ class Tracker:
         c = self.config
         if track.state == "tentative":  # more misses and it can no longer reach M of N
             return c.confirm_window - c.confirm_hits
-        return c.delete_after_misses - 1
+        # a track seen often has earned more patience (miss_patience_per_hit)
+        return max(c.delete_after_misses, math.floor(c.miss_patience_per_hit * track.hits)) - 1
 
     def _expire(self, scenes: int) -> None:
         """Delete, before association, the tracks a gap's unseen scenes alone age out."""

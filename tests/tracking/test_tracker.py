@@ -102,7 +102,7 @@ def test_m_of_n_confirmation_and_tentative_deletion():
 
 
 def test_confirmed_track_goes_lost_then_is_deleted():
-    config = TrackingConfig(delete_after_misses=3)
+    config = TrackingConfig(delete_after_misses=3, miss_patience_per_hit=0.0)
     tracker = Tracker(config)
     for k in range(3):
         tracker.update([det([0, 0, 0])], stamp(k))
@@ -115,6 +115,19 @@ def test_confirmed_track_goes_lost_then_is_deleted():
     tracker.update([], stamp(3))
     (track,) = tracker.update([det([0.2, 0, 0])], stamp(4))
     assert (track.id, track.state) == (1, "confirmed")
+
+
+def test_a_track_seen_often_outlives_more_misses():
+    """miss_patience_per_hit: six hits at 1 per hit keep a track through five misses where
+    delete_after_misses = 3 alone deletes it after three; a track seen twice still goes after three."""
+    config = TrackingConfig(delete_after_misses=3, miss_patience_per_hit=1.0)
+    often, twice = Tracker(config), Tracker(config)
+    for k in range(6):
+        often.update([det([0, 0, 0])], stamp(k))
+    for k in range(2):
+        twice.update([det([0, 0, 0])], stamp(k))
+    assert [len(often.update([], stamp(k))) for k in range(6, 12)] == [1, 1, 1, 1, 1, 0]
+    assert [len(twice.update([], stamp(k))) for k in range(2, 5)] == [1, 1, 0]
 
 
 def test_a_gap_of_many_scenes_ages_tracks_by_the_scenes_it_spans():
