@@ -8,7 +8,8 @@ A service is a loop over `node.events()`:
                 ...  # compute, then node.publish(key, data)
 
 - Zenoh's callback thread only enqueues raw bytes; decoding, validation and computation run in the service thread,
-  one input at a time, in arrival order.
+  one input at a time, in arrival order; the `urgent` inputs (the sfm's guidance) go ahead of the inputs
+  queued before them, so a service that has fallen behind uses the newest of them for its next input.
 - A message that is not msgpack, breaks its schema, or makes the computation raise becomes an ErrorReport on
   `atr/{uav}/{service}/errors` (and the log), is counted, and the loop goes on with the next input.
 - Every key is published through a zenoh-ext AdvancedPublisher and every input received through an
@@ -29,6 +30,7 @@ A service is a loop over `node.events()`:
 
 from __future__ import annotations
 
+import collections
 import logging
 import os
 import queue
@@ -82,6 +84,9 @@ class _Raw:
     sequenced: bool = False  # numbered by Zenoh: its gaps are reported as a Loss, not by seq
 
 
+_WAKE = object()  # put in the queue when an urgent input arrives: the service loop looks at them
+
+
 @dataclass
 class Counters:
     """What a service has done so far; published in every Status."""
@@ -131,14 +136,18 @@ class Node:
         state_dir: str | Path | None = None,
         replay_lost: bool = False,
         budget: LinkBudget | None = None,
+        urgent: list[str] | tuple[str, ...] = (),
     ) -> None:
         self.service = service
         self.uav = uav
         self.source_id = f"{service}@{socket.gethostname()}:{os.getpid()}"
         self.counters = Counters()
         # SimpleQueue, not Queue: a signal handler puts into it (see bus/stopping.py).
-        self._queue: queue.SimpleQueue[_Raw | Loss | None] = queue.SimpleQueue()
+        self._queue: queue.SimpleQueue[_Raw | Loss | object | None] = queue.SimpleQueue()
         self._max_queue = max_queue
+        # the urgent inputs wait here, handed out before the queue; a _WAKE in the queue wakes the loop
+        self._urgent_keys = frozenset(urgent)
+        self._urgent: collections.deque[_Raw] = collections.deque()
         self._stop = StopRequest()
         self._publish_lock = threading.Lock()
         self._budget = budget or LinkBudget.from_env()
@@ -251,6 +260,10 @@ class Node:
             attachment,
             reliable.is_sequenced(sample),
         )
+        if raw.key in self._urgent_keys:
+            self._urgent.append(raw)
+            self._queue.put(_WAKE)
+            return
         if self._queue.qsize() >= self._max_queue:
             self.counters.dropped += 1
             return
@@ -260,21 +273,27 @@ class Node:
         self._queue.put(loss)  # reported by the service thread, in arrival order
 
     def pending(self) -> int:
-        """Inputs received and not yet handed out by ``events()``."""
+        """Inputs received and not yet handed out by ``events()`` (a wake-up of an urgent one counts)."""
         return self._queue.qsize()
 
     def events(self, timeout_s: float | None = None) -> Iterator[Message]:
-        """Decoded inputs in arrival order until stopped (or `timeout_s` without input, if given).
+        """Decoded inputs in arrival order, the urgent ones first, until stopped (or `timeout_s`
+        without input, if given).
 
         Inputs that fail to decode or validate are reported on the errors key and skipped.
         """
         while not self._stop.is_set():
-            try:
-                raw = self._queue.get(timeout=timeout_s if timeout_s is not None else 0.2)
-            except queue.Empty:
-                self._report_drops()
-                if timeout_s is not None:
-                    return
+            if self._urgent:
+                raw = self._urgent.popleft()
+            else:
+                try:
+                    raw = self._queue.get(timeout=timeout_s if timeout_s is not None else 0.2)
+                except queue.Empty:
+                    self._report_drops()
+                    if timeout_s is not None:
+                        return
+                    continue
+            if raw is _WAKE:  # an urgent input, already handed out or next
                 continue
             if raw is None:
                 return

@@ -82,7 +82,10 @@ def main(argv: list[str] | None = None) -> int:
     # matcher's held tracks (its latest guidance) and which pairs are matched whole
     held: list[SearchRegion] = []
     schedule = SearchSchedule(tracking.full_search_every_frames)
-    with start_node("sfm", args, inputs=inputs) as node:
+    # the guidance goes ahead of queued images: sfm behind the camera matches its next pair where
+    # the matcher now looks, not where it looked when that image was queued
+    urgent = [keys.guidance(args.uav)] if guided else []
+    with start_node("sfm", args, inputs=inputs, urgent=urgent) as node:
         node.ready()
 
         def publish_cloud(message: dict) -> None:

@@ -48,6 +48,28 @@ def test_every_message_type_round_trips_between_processes(hub):
         assert_same(example(name), data)
 
 
+def test_urgent_inputs_go_ahead_of_the_inputs_queued_before_them(hub):
+    """The sfm's guidance: a service that has fallen behind handles it before the images queued."""
+    urgent = KEYS["SearchGuidance"]
+    with Node(
+        "receiver", "uav9", list(KEYS.values()), zenoh_config=peer_config(hub), urgent=[urgent]
+    ) as node:
+        child = subprocess.Popen(
+            [sys.executable, str(HERE / "_publish_examples.py"), hub, "1.5"],
+            env=bus_env(hub),
+            cwd=REPO,
+        )
+        child.wait(20)  # everything is queued before the service asks for its first input
+        order = [
+            m.type_name
+            for m in node.events(timeout_s=0.5)
+            if m.source and m.source.startswith("examples@")
+        ]
+    # published eighth of thirteen; the others in arrival order, which differs between keys
+    assert order[0] == "SearchGuidance"
+    assert sorted(order[1:]) == sorted(name for name in KEYS if name != "SearchGuidance")
+
+
 def _collect(session: zenoh.Session, key: str) -> list[dict]:
     """The messages that arrive on `key` from now on, decoded, in arrival order."""
     found: list[dict] = []
