@@ -8,8 +8,9 @@ by when the search ends, so the answers are the same whichever lane ran it:
 
 - ``InPlaceLane`` runs the search when it is handed over, in the caller's process (the evaluation: its
   time counts in the scene that started it, as a whole scene's does without the lag);
-- ``ProcessLane`` runs it in a worker process of its own (the matcher service: guided scenes go on
-  while it runs, and a scene waits for it only when its joining frame comes first).
+- ``ProcessLane`` runs it in a worker process of its own, at a lower scheduling priority (the matcher
+  service: guided scenes go on while it runs, and a scene waits for it only when its joining frame
+  comes first).
 
 A process, not a thread: much of a whole search is Python (grouping, RANSAC's bookkeeping, ICP calls)
 and would hold the interpreter lock the guided scenes need. ``concurrent.futures`` with the ``spawn``
@@ -75,6 +76,17 @@ def _search_in_worker(search: WholeSearch, templates_sent: bool) -> RecognitionR
     return replace(search, templates=_lane_templates).run()
 
 
+# The worker's scheduling priority below the services' (Unix nice, 0-19): a whole search has frames
+# to spare before its answer is due, a guided scene has none, so the search takes the cores they leave.
+WORKER_NICENESS = 10
+
+
+def _start_worker(parent_pid: int) -> None:
+    """The worker's set-up: below the services' priority, and gone when its parent is."""
+    os.nice(WORKER_NICENESS)
+    _die_with(parent_pid)
+
+
 def _die_with(parent_pid: int) -> None:
     """Exit when the process that started this worker is gone, however it went (a killed matcher's
     worker would otherwise live on, holding a core's worth of search).
@@ -138,7 +150,7 @@ class ProcessLane:
             self._pool = ProcessPoolExecutor(
                 max_workers=1,
                 mp_context=multiprocessing.get_context("spawn"),
-                initializer=_die_with,
+                initializer=_start_worker,
                 initargs=(os.getpid(),),
             )
             self._sent = None

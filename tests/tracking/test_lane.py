@@ -13,7 +13,7 @@ import pytest
 
 from atr.errors import InputError
 from atr.recognition import RecognitionConfig
-from atr.tracking.lane import InPlaceLane, ProcessLane, WholeSearch
+from atr.tracking.lane import WORKER_NICENESS, InPlaceLane, ProcessLane, WholeSearch
 
 
 def _alive(pid: int) -> bool:
@@ -51,6 +51,14 @@ def test_a_killed_matcher_s_worker_does_not_outlive_it() -> None:
     while _alive(worker) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not _alive(worker), f"the worker {worker} outlived its killed parent"
+
+
+def test_the_worker_runs_below_the_service_s_priority() -> None:
+    """A guided scene must not wait for the cores a whole search holds."""
+    with ProcessLane() as lane:
+        worker = lane.warm().result()
+        ours, its = os.getpriority(os.PRIO_PROCESS, 0), os.getpriority(os.PRIO_PROCESS, worker)
+    assert its == min(19, ours + WORKER_NICENESS)  # 19: the lowest priority there is
 
 
 def test_a_closed_lane_stops_its_worker() -> None:
