@@ -124,12 +124,17 @@ class TrackingConfig:
             nothing, deciding the class where it found another (``GuidedSearch``). The joining scene
             is fixed by frame numbers, so the answers do not depend on how fast the search ran. While
             no track is held a whole search answers its own scene: handing those over too lost the
-            first scenes of every flight and let a look-alike keep a target's place. 6: 0.6 s at ten
-            frames a second, more than a whole search's 0.25-0.7 s beside the other services, so a
-            scene seldom waits for one. Chosen on tuning seeds 101-102 (docs/tracking.md, "Whole
-            searches that answer late"): every 5th scene, the T-72's F1 0.956 -> 0.957; every scene,
-            pooled 0.925 -> 0.918, the target that a whole search finds while a confuser's track is
-            held being found six frames later. 0: every whole search answers its own scene.
+            first scenes of every flight and let a look-alike keep a target's place. 8: 0.8 s at ten
+            frames a second, more than a whole search's 0.45-0.9 s in the worker beside the other
+            services, so a scene seldom waits for one. Chosen on tuning seeds 101-102 (docs/
+            tracking.md, "Whole searches that answer late"): 6 against 0, every 5th scene, the
+            T-72's F1 0.956 -> 0.957; every scene, pooled 0.925 -> 0.918, the target that a whole
+            search finds while a confuser's track is held being found six frames later; then 8
+            against 6 with whole searches every 15 frames, which at 6 made the graph's last scene
+            wait for the search that joined it (a scene every 100-103 ms, at 8 99-100 ms): every
+            scene, F1 0.921 -> 0.920 and 0.936 -> 0.937, track F1 0.974 -> 0.972 and 0.978 -> 0.976;
+            with ``atr eval --every 5`` both join the same sampled scene. 0: every whole search
+            answers its own scene.
         k_search_radius: a held track's search cylinder's radius / the largest footprint (length +
             width) of the templates laid at its place (guided_class_cylinders; else of every template):
             a vehicle at the track's place is inside at any heading (its half-diagonal is under half
@@ -164,7 +169,7 @@ class TrackingConfig:
     guided_whole_lays_all: bool = True
     guided_reacquire_misses: int = bounded(0, ge=0)
     full_search_every_frames: int = bounded(15, ge=1)
-    whole_search_lag_frames: int = bounded(6, ge=0)
+    whole_search_lag_frames: int = bounded(8, ge=0)
     k_search_radius: float = bounded(0.6, gt=0)
 
     def __post_init__(self) -> None:
