@@ -2,7 +2,7 @@
 
 from atr.imu.attitude import attitude_angles, attitude_matrix, invert_pose, relative_camera_pose
 from atr.imu.config import ImuConfig
-from atr.imu.strapdown import NavState, PoseIntegrator, check_imu_samples, integrate
+from atr.imu.strapdown import NavState, PoseIntegrator, check_imu_samples, integrate, warm_up
 
 __all__ = [
     "ImuConfig",
@@ -14,4 +14,5 @@ __all__ = [
     "integrate",
     "invert_pose",
     "relative_camera_pose",
+    "warm_up",
 ]

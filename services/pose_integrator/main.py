@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 
-from atr.imu import relative_camera_pose
+from atr.imu import relative_camera_pose, warm_up
 from atr.imu.pose_track import FramePose, PoseTrack, nav_state
 from bus import keys
 from bus.node import Node
@@ -40,6 +40,7 @@ def main(argv: list[str] | None = None) -> int:
             if saved is None
             else PoseTrack.from_state_dict(config.imu, saved)
         )
+        warm_up(config.imu)  # the first frame would pay for it: its latency, and every next one's
         node.ready()
         for message in node.events():
             with node.handling(message):

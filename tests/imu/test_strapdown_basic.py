@@ -1,3 +1,6 @@
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -133,3 +136,27 @@ def test_pose_integrator_applies_extrinsic():
 def test_config_rejects_bad_values(kwargs):
     with pytest.raises(ConfigError):
         ImuConfig(**kwargs)
+
+
+@pytest.mark.parametrize("integration", ["strapdown", "paper"])
+def test_warm_up_loads_the_kernel_the_configuration_integrates_with(integration: str) -> None:
+    """In a fresh process (this one may have run either kernel): warm_up loads the configured kernel
+    only, at the argument types a pose's integration calls it with, so the first frame loads nothing."""
+    code = f"""
+import numpy as np
+from atr.imu import ImuConfig, NavState, PoseIntegrator, warm_up
+from atr.imu._kernels import paper_kernel, strapdown_kernel
+config = ImuConfig(integration={integration!r})
+warm_up(config)
+print(len(strapdown_kernel.signatures), len(paper_kernel.signatures))
+pi = PoseIntegrator(config, NavState.at_rest(0))
+t_ns = np.arange(1, 40, dtype=np.int64) * int(config.sample_period_ns)
+pi.add_imu(t_ns, np.full((39, 3), 0.01), np.tile([0.1, 0.0, 9.81], (39, 1)))
+pi.camera_pose(int(t_ns[-1]))
+print(len(strapdown_kernel.signatures), len(paper_kernel.signatures))
+"""
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120
+    ).stdout.split()
+    loaded = ["1", "0"] if integration == "strapdown" else ["0", "1"]
+    assert out == loaded + loaded  # and a frame's pose compiled no other signature
