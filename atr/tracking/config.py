@@ -135,6 +135,17 @@ class TrackingConfig:
             scene, F1 0.921 -> 0.920 and 0.936 -> 0.937, track F1 0.974 -> 0.972 and 0.978 -> 0.976;
             with ``atr eval --every 5`` both join the same sampled scene. 0: every whole search
             answers its own scene.
+        try_tentative_first: with guided_search, a whole search that comes due while only tentative
+            tracks are held (a flight's start) first lays every template at their poses and refines
+            them by ICP in their cylinders; when each tentative track's own class wins its place again
+            that is the scene's answer and the whole search is skipped (its cloud is matched whole all
+            the same, so the schedule counts it as whole). Until a track is held every scene is a whole
+            search (0.45-0.53 s among three templates), and at ten frames a second the first two set
+            the service graph's latency for the flight's first second or more: with the try its p95
+            over a 121-frame flight is 187-258 ms against 651-709 ms (docs/performance.md, "The service
+            graph at the camera's pace"). Chosen on tuning seeds 101-102: every 5th scene, the T-72
+            0.969 -> 0.973, the M113 and the HMMWV among eleven unchanged; every scene unchanged
+            (docs/tracking.md, "Tentative tracks tried first").
         k_search_radius: a held track's search cylinder's radius / the largest footprint (length +
             width) of the templates laid at its place (guided_class_cylinders; else of every template):
             a vehicle at the track's place is inside at any heading (its half-diagonal is under half
@@ -170,6 +181,7 @@ class TrackingConfig:
     guided_reacquire_misses: int = bounded(0, ge=0)
     full_search_every_frames: int = bounded(15, ge=1)
     whole_search_lag_frames: int = bounded(8, ge=0)
+    try_tentative_first: bool = True
     k_search_radius: float = bounded(0.6, gt=0)
 
     def __post_init__(self) -> None:

@@ -280,7 +280,12 @@ class GuidedSearch:
             if sigma is not None and np.shape(sigma) == (len(inside),):
                 sigma = np.asarray(sigma)[inside]
         poses, targets = self.places() if well_formed else ([], None)
-        if regions is not None and poses:
+        tried: RecognitionResult | None = None
+        if regions is None and well_formed and self._holds_only_tentative():
+            tried = self._try_tentative(points, sigma, seed, viewpoint_m)
+        if tried is not None and tried.stats["tentative_won"]:
+            result = tried
+        elif regions is not None and poses:
             result = verify_places(
                 points,
                 self.templates,
@@ -306,8 +311,17 @@ class GuidedSearch:
                 scene_sigma_m=sigma,
                 places_T_world_target=poses if lays_all else [],
             )
-        result.stats["search"] = "whole" if regions is None else len(regions)
-        result.stats["searched_points"] = len(points)
+        if tried is not None and not tried.stats["tentative_won"]:
+            # the try's time is this scene's too
+            for stage, ms in tried.stage_times_ms.items():
+                result.stage_times_ms[stage] = result.stage_times_ms.get(stage, 0.0) + ms
+        if tried is not None and tried.stats["tentative_won"]:
+            result.stats["search"] = "tentative"
+        else:
+            result.stats["search"] = "whole" if regions is None else len(regions)
+            result.stats["searched_points"] = len(points)
+        if tried is not None:
+            result.stats["tentative_won"] = tried.stats["tentative_won"]
         if handed_over:
             result.stats["whole_search_handed_over"] = True
             whole_search = self._pending.result if self._pending is not None else None
@@ -324,6 +338,67 @@ class GuidedSearch:
             whole = regions is None or handed_over
             self._observe(result, stamp_ns, frame_seq, viewpoint_m, whole=whole)
         return result
+
+    def _holds_only_tentative(self) -> bool:
+        """Whether a whole search due now may first try the tentative tracks (try_tentative_first)."""
+        tracks = self.tracker.tracks
+        t = self.tracking
+        return (
+            t.guided_search
+            and t.try_tentative_first
+            and bool(tracks)
+            and all(track.state == "tentative" for track in tracks)
+        )
+
+    def _try_tentative(
+        self,
+        points: np.ndarray,
+        sigma: np.ndarray | None,
+        seed: int,
+        viewpoint_m: np.ndarray | None,
+    ) -> RecognitionResult:
+        """Every template laid at the tentative tracks' poses and refined in their cylinders (each the
+        size of the largest template's: every template is laid there). Its stats say whether each
+        track's own class won its place again ("tentative_won") and how many points it searched.
+        """
+        # a cloud the whole search would refuse is refused here, whatever lies outside the cylinders
+        points, sigma = validated_cloud(points, sigma, self.recognition)
+        tracks = self.tracker.tracks
+        low_m, high_m = self.z_span_m
+        cylinders = [
+            SearchRegion(
+                t.position_m[:2].copy(),
+                self.radius_m,
+                float(t.position_m[2]) + low_m,
+                float(t.position_m[2]) + high_m,
+            )
+            for t in tracks
+        ]
+        inside = points_in_regions(points, cylinders)
+        result = verify_places(
+            points[inside],
+            self.templates,
+            self.recognition,
+            self.places()[0],
+            seed=seed,
+            viewpoint_m=viewpoint_m,
+            scene_sigma_m=None if sigma is None else sigma[inside],
+        )
+        result.stats["tentative_won"] = all(
+            any(d.target == t.target and self._at_track(d, t) for d in result.detections)
+            for t in tracks
+        )
+        result.stats["searched_points"] = int(inside.sum())
+        return result
+
+    def _at_track(self, detection: Detection, track: Track) -> bool:
+        """Whether a detection stands at a track's place, as the place competition judges one place."""
+        extent_m = max(
+            self._extent_m.get(detection.target, 0.0), self._extent_m.get(track.target, 0.0)
+        )
+        return same_place(
+            detection.T_world_target[:3, 3], track.position_m, extent_m, self.recognition.nms_m
+        )
 
     def _hand_over(
         self,

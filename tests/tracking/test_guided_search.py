@@ -70,11 +70,12 @@ def test_held_tracks_are_searched_between_whole_searches(world) -> None:
         searches.append(result.stats["search"])
         points.append(result.stats["searched_points"])
         assert _tank_found(result, tank_m), (k, result.stats["search"])
-    # two scenes to confirm (M = 2), then two guided scenes, then the whole cloud again
-    assert searches[:2] == ["whole", "whole"] and searches[4] == "whole"
+    # two scenes to confirm (M = 2): the whole cloud, then the tentative track tried where it stands
+    # (its cloud matched whole, so the period counts from it); two guided scenes; the whole cloud again
+    assert searches[:2] == ["whole", "tentative"] and searches[4] == "whole"
     assert all(isinstance(s, int) and s >= 1 for s in searches[2:4]), searches
-    assert points[2] < len(scene) and points[3] < len(scene)
-    assert points[0] == points[1] == points[4] == len(scene)
+    assert points[1] < len(scene) and points[2] < len(scene) and points[3] < len(scene)
+    assert points[0] == points[4] == len(scene)
     # a scene out of order does not fail the recognition; the guidance starts again from no track
     late = search(scene, seed=0, stamp_ns=2 * SCENE_S, frame_seq=2, viewpoint_m=VIEWPOINT)
     assert _tank_found(late, tank_m)
@@ -151,7 +152,7 @@ def test_a_cloud_matched_whole_is_searched_where_the_schedule_says(world) -> Non
         )
         searches.append(result.stats["search"])
         assert _tank_found(result, tank_m), (k, result.stats["search"])
-    assert searches == ["whole", "whole", 1, 1, "whole"]
+    assert searches == ["whole", "tentative", 1, 1, "whole"]
 
 
 def test_the_scene_after_a_held_target_went_unconfirmed_is_searched_whole(world) -> None:
@@ -200,6 +201,45 @@ def test_a_whole_search_also_lays_every_template_at_the_held_places(world) -> No
         else:
             assert "laid" not in result.stats
         assert _tank_found(result, tank_m)
+
+
+def test_a_tentative_track_whose_class_wins_its_place_again_skips_the_whole_search(world) -> None:
+    """try_tentative_first: the scene after the first find lays the templates at the tentative
+    tracks and, each won again by its own class, answers from their cylinders alone."""
+    cfg, templates, scene, tank_m = world
+    tracking = TrackingConfig(
+        guided_search=True, full_search_every_frames=10, whole_search_lag_frames=0
+    )
+    search = GuidedSearch(templates, cfg, tracking)
+    first = search(scene, seed=0, stamp_ns=SCENE_S, frame_seq=1, viewpoint_m=VIEWPOINT)
+    assert first.stats["search"] == "whole" and _tank_found(first, tank_m)
+    assert all(t.state == "tentative" for t in search.tracker.tracks)
+    tried = search(scene, seed=0, stamp_ns=2 * SCENE_S, frame_seq=2, viewpoint_m=VIEWPOINT)
+    assert tried.stats["search"] == "tentative" and tried.stats["tentative_won"]
+    assert tried.stats["searched_points"] < len(scene)
+    assert _tank_found(tried, tank_m)
+    assert search.regions(3) is not None  # two scenes confirmed the tank: guided from here
+    # the schedule counted the tried scene as whole (sfm matched its pair whole)
+    assert search.regions(11) is not None and search.regions(12) is None
+
+
+def test_a_tentative_track_not_won_again_leaves_the_scene_to_the_whole_search(world) -> None:
+    cfg, templates, scene, tank_m = world
+    tracking = TrackingConfig(guided_search=True, whole_search_lag_frames=0)
+    search = GuidedSearch(templates, cfg, tracking)
+    search(scene, seed=0, stamp_ns=SCENE_S, frame_seq=1, viewpoint_m=VIEWPOINT)
+    moved_m = np.array([0.0, 25.0, 0.0])  # the next scene's vehicles stand elsewhere
+    moved = search(
+        scene + moved_m, seed=0, stamp_ns=2 * SCENE_S, frame_seq=2, viewpoint_m=VIEWPOINT
+    )
+    assert moved.stats["search"] == "whole" and moved.stats["tentative_won"] is False
+    assert _tank_found(moved, tank_m + moved_m)
+    # the scene's answer is the whole search's, as without the try
+    plain = GuidedSearch(templates, cfg, dataclasses.replace(tracking, try_tentative_first=False))
+    plain(scene, seed=0, stamp_ns=SCENE_S, frame_seq=1, viewpoint_m=VIEWPOINT)
+    alone = plain(scene + moved_m, seed=0, stamp_ns=2 * SCENE_S, frame_seq=2, viewpoint_m=VIEWPOINT)
+    assert [d.to_dict() for d in moved.detections] == [d.to_dict() for d in alone.detections]
+    assert "tentative_won" not in alone.stats
 
 
 def test_search_radius_is_a_multiple_of_the_largest_footprint(world) -> None:
@@ -352,15 +392,16 @@ def test_a_lagged_whole_search_joins_the_scene_its_lag_names(world) -> None:
 
 
 def test_a_lagged_flight_answers_its_own_whole_scenes_while_no_track_is_held(world) -> None:
-    """Until a track is held every scene is searched whole and answered by that search, as without
-    the lag: a look-alike's template may win a target's place in one whole search and lose it in the
-    next, which a guided scene, laying only the classes held there, would not give it."""
+    """Until a track is held every scene is answered by its own search, as without the lag: a whole
+    one, or the tentative tracks tried with every template (try_tentative_first): a look-alike's
+    template may win a target's place in one whole search and lose it in the next, which a guided
+    scene, laying only the classes held there, would not give it."""
     cfg, templates, scene, tank_m = world
     tracking = TrackingConfig(
         guided_search=True, full_search_every_frames=6, whole_search_lag_frames=2
     )
     results = _lagged_flight(GuidedSearch(templates, cfg, tracking), scene, range(1, 4))
-    assert [r.stats["search"] == "whole" for r in results] == [True, True, False]
+    assert [r.stats["search"] for r in results] == ["whole", "tentative", 1]
     assert not any(r.stats.get("whole_search_handed_over") for r in results)
     assert all(_tank_found(r, tank_m) for r in results)
 
