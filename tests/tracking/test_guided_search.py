@@ -216,6 +216,7 @@ def test_a_tentative_track_whose_class_wins_its_place_again_skips_the_whole_sear
     assert all(t.state == "tentative" for t in search.tracker.tracks)
     tried = search(scene, seed=0, stamp_ns=2 * SCENE_S, frame_seq=2, viewpoint_m=VIEWPOINT)
     assert tried.stats["search"] == "tentative" and tried.stats["tentative_won"]
+    assert tried.stats["tentative_templates"] == len(templates)  # every template competed there
     assert tried.stats["searched_points"] < len(scene)
     assert _tank_found(tried, tank_m)
     assert search.regions(3) is not None  # two scenes confirmed the tank: guided from here
@@ -225,14 +226,19 @@ def test_a_tentative_track_whose_class_wins_its_place_again_skips_the_whole_sear
 
 def test_a_tentative_track_not_won_again_leaves_the_scene_to_the_whole_search(world) -> None:
     cfg, templates, scene, tank_m = world
+    # a third template no track is of: a try that fails stops at the tracks' own classes
+    templates = [*templates, dataclasses.replace(templates[1], target="decoy")]
     tracking = TrackingConfig(guided_search=True, whole_search_lag_frames=0)
     search = GuidedSearch(templates, cfg, tracking)
-    search(scene, seed=0, stamp_ns=SCENE_S, frame_seq=1, viewpoint_m=VIEWPOINT)
+    first = search(scene, seed=0, stamp_ns=SCENE_S, frame_seq=1, viewpoint_m=VIEWPOINT)
+    own = {t.target for t in search.tracker.tracks}
+    assert "decoy" not in own and _tank_found(first, tank_m)
     moved_m = np.array([0.0, 25.0, 0.0])  # the next scene's vehicles stand elsewhere
     moved = search(
         scene + moved_m, seed=0, stamp_ns=2 * SCENE_S, frame_seq=2, viewpoint_m=VIEWPOINT
     )
     assert moved.stats["search"] == "whole" and moved.stats["tentative_won"] is False
+    assert moved.stats["tentative_templates"] == len(own) < len(templates)
     assert _tank_found(moved, tank_m + moved_m)
     # the scene's answer is the whole search's, as without the try
     plain = GuidedSearch(templates, cfg, dataclasses.replace(tracking, try_tentative_first=False))
