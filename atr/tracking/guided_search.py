@@ -23,6 +23,12 @@ some ground around it, which ground removal needs. The tracker is the tracker se
 (``atr.tracking.Tracker``) fed with the matcher's detections, so the guidance is deterministic: the
 same clouds in the same order give the same searches. A restarted matcher starts with no track and
 searches whole clouds until it holds one again.
+
+Before any track is confirmed (a flight's start) a whole search that falls due first tries the tentative
+tracks where they stand (``tracking.try_tentative_first``): each one's own class laid at its pose, then,
+if each is accepted, every template, the place competition deciding; when each track's own class wins
+its place again the scene is answered so and the whole search is skipped, so that the second scene of a
+flight is not a second whole search.
 """
 
 from __future__ import annotations
@@ -219,7 +225,7 @@ class GuidedSearch:
     def _turns(track: Track) -> list[np.ndarray]:
         """A track's fused pose, and turned by 180 degrees while its heading is unsure."""
         T = track.T_world_target
-        if not (track.yaw_ambiguous or not np.isfinite(track.yaw_var)):
+        if not track.yaw_ambiguous and np.isfinite(track.yaw_var):
             return [T]
         flipped = T.copy()
         flipped[:2, :2] = -T[:2, :2]
@@ -284,10 +290,12 @@ class GuidedSearch:
             if sigma is not None and np.shape(sigma) == (len(inside),):
                 sigma = np.asarray(sigma)[inside]
         poses, targets = self.places() if well_formed else ([], None)
+        # before any track is confirmed, a whole search is first spared by trying the tentative ones
         tried: RecognitionResult | None = None
         if regions is None and well_formed and self._holds_only_tentative():
             tried = self._try_tentative(points, sigma, seed, viewpoint_m)
-        if tried is not None and tried.stats["tentative_won"]:
+        won = tried is not None and tried.stats["tentative_won"]
+        if won:
             result = tried
         elif regions is not None and poses:
             result = verify_places(
@@ -315,17 +323,18 @@ class GuidedSearch:
                 scene_sigma_m=sigma,
                 places_T_world_target=poses if lays_all else [],
             )
-        if tried is not None and not tried.stats["tentative_won"]:
-            # the try's time is this scene's too
-            for stage, ms in tried.stage_times_ms.items():
-                result.stage_times_ms[stage] = result.stage_times_ms.get(stage, 0.0) + ms
-        if tried is not None and tried.stats["tentative_won"]:
+        if won:
             result.stats["search"] = "tentative"
         else:
             result.stats["search"] = "whole" if regions is None else len(regions)
             result.stats["searched_points"] = len(points)
-        if tried is not None:
-            result.stats["tentative_won"] = tried.stats["tentative_won"]
+        if tried is not None and not won:
+            for (
+                stage,
+                ms,
+            ) in tried.stage_times_ms.items():  # the failed try's time is the scene's too
+                result.stage_times_ms[stage] = result.stage_times_ms.get(stage, 0.0) + ms
+            result.stats["tentative_won"] = False
             result.stats["tentative_templates"] = tried.stats["tentative_templates"]
         if handed_over:
             result.stats["whole_search_handed_over"] = True
