@@ -428,11 +428,8 @@ class GuidedSearch:
 
     def _at_track(self, detection: Detection, track: Track) -> bool:
         """Whether a detection stands at a track's place, as the place competition judges one place."""
-        extent_m = max(
-            self._extent_m.get(detection.target, 0.0), self._extent_m.get(track.target, 0.0)
-        )
-        return same_place(
-            detection.T_world_target[:3, 3], track.position_m, extent_m, self.recognition.nms_m
+        return self._one_place(
+            detection.T_world_target[:3, 3], detection.target, track.position_m, track.target
         )
 
     def _hand_over(
@@ -500,10 +497,14 @@ class GuidedSearch:
 
     def _same_place(self, a: Detection, b: Detection) -> bool:
         """Whether two detections are one place, as the place competition judges it."""
-        extent_m = max(self._extent_m.get(a.target, 0.0), self._extent_m.get(b.target, 0.0))
-        return same_place(
-            a.T_world_target[:3, 3], b.T_world_target[:3, 3], extent_m, self.recognition.nms_m
-        )
+        return self._one_place(a.T_world_target[:3, 3], a.target, b.T_world_target[:3, 3], b.target)
+
+    def _one_place(
+        self, position_a_m: np.ndarray, target_a: str, position_b_m: np.ndarray, target_b: str
+    ) -> bool:
+        """Whether two vehicles' positions are one place, the larger class's extent deciding."""
+        extent_m = max(self._extent_m.get(target_a, 0.0), self._extent_m.get(target_b, 0.0))
+        return same_place(position_a_m, position_b_m, extent_m, self.recognition.nms_m)
 
     def _observe(
         self,
