@@ -33,6 +33,7 @@ class Seen:
     """What the observer saw on the bus, per frame stamp."""
 
     frames: dict[int, int] = field(default_factory=dict)  # stamp_ns -> frame_seq (IMU batches)
+    seen_ns: dict[int, int] = field(default_factory=dict)  # stamp_ns -> wall clock when first seen
     detections: dict[int, int] = field(default_factory=dict)  # stamp_ns -> how many
     reported: dict[int, list[str]] = field(default_factory=dict)  # stamp_ns -> error reasons
     cloud_points: dict[int, int] = field(default_factory=dict)  # stamp_ns -> points of its cloud
@@ -73,6 +74,7 @@ def fly(
         m = _message(sample)
         with seen.lock:
             seen.frames[int(m["stamp_ns"])] = int(m["frame_seq"])
+            seen.seen_ns.setdefault(int(m["stamp_ns"]), time.time_ns())
 
     def on_detections(sample: zenoh.Sample) -> None:
         stamp = int(_message(sample)["stamp_ns"])
