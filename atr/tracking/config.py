@@ -139,10 +139,10 @@ class TrackingConfig:
             tracks are held (a flight's start) first lays each one's own class at its pose (refined by
             ICP in its cylinder), then, when each is accepted, every template; when each tentative
             track's own class wins its place again that is the scene's answer and the whole search is
-            skipped (its cloud is matched whole all
-            the same, so the schedule counts it as whole). Until a track is held every scene is a whole
-            search (0.45-0.53 s among three templates), and at ten frames a second the first two set
-            the service graph's latency for the flight's first second or more: with the try its p95
+            skipped (its cloud is matched whole all the same, so the schedule counts it as whole).
+            Until a track is held every scene is a whole search (0.45-0.53 s among three
+            templates), and at ten frames a second the first two set the service graph's latency
+            for the flight's first second or more: with the try its p95
             over a 121-frame flight is 149-258 ms against 651-709 ms (docs/performance.md, "The service
             graph at the camera's pace"). Chosen on tuning seeds 101-102: every 5th scene, the T-72
             0.969 -> 0.973, the M113 and the HMMWV among eleven unchanged; every scene unchanged

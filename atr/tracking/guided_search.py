@@ -59,6 +59,18 @@ from atr.tracking.lane import InPlaceLane, WholeSearch, WholeSearchLane
 from atr.tracking.tracker import Track, Tracker, TrackInput
 
 
+def _cylinder_around(track: Track, radius_m: float, low_m: float, high_m: float) -> SearchRegion:
+    """A vertical cylinder about a track's position, its heights relative to the track's."""
+    z_m = float(track.position_m[2])
+    return SearchRegion(track.position_m[:2].copy(), radius_m, z_m + low_m, z_m + high_m)
+
+
+def _add_stage_times(result: RecognitionResult, other: RecognitionResult) -> None:
+    """Count another search's stage times in a result's: both ran for its scene."""
+    for stage, ms in other.stage_times_ms.items():
+        result.stage_times_ms[stage] = result.stage_times_ms.get(stage, 0.0) + ms
+
+
 class SearchSchedule:
     """Which scenes are searched whole: the first, the first one ``full_search_every_frames`` camera frames
     or more after the last whole one, and every scene while no track is held. Kept by whoever decides
@@ -194,10 +206,7 @@ class GuidedSearch:
                 if cylinders:
                     radius_m = max(c[0] for c in cylinders)
                     low, high = min(c[1] for c in cylinders), max(c[2] for c in cylinders)
-            z_m = float(track.position_m[2])
-            regions.append(
-                SearchRegion(track.position_m[:2].copy(), radius_m, z_m + low, z_m + high)
-            )
+            regions.append(_cylinder_around(track, radius_m, low, high))
         return regions
 
     def _classes_at(self, track: Track) -> frozenset[str]:
@@ -329,11 +338,7 @@ class GuidedSearch:
             result.stats["search"] = "whole" if regions is None else len(regions)
             result.stats["searched_points"] = len(points)
         if tried is not None and not won:
-            for (
-                stage,
-                ms,
-            ) in tried.stage_times_ms.items():  # the failed try's time is the scene's too
-                result.stage_times_ms[stage] = result.stage_times_ms.get(stage, 0.0) + ms
+            _add_stage_times(result, tried)  # the failed try's time is the scene's too
             result.stats["tentative_won"] = False
             result.stats["tentative_templates"] = tried.stats["tentative_templates"]
         if handed_over:
@@ -342,8 +347,7 @@ class GuidedSearch:
             in_place = isinstance(self.lane, InPlaceLane) and whole_search is not None
             if in_place and not whole_search.exception():
                 # run in place (the evaluation): its time is this scene's, as without the lag
-                for stage, ms in whole_search.result().stage_times_ms.items():
-                    result.stage_times_ms[stage] = result.stage_times_ms.get(stage, 0.0) + ms
+                _add_stage_times(result, whole_search.result())
         if joined is not None:
             result.detections, kept = self._joined(result.detections, late)
             result.stats["late_detections"] = kept
@@ -371,8 +375,8 @@ class GuidedSearch:
         seed: int,
         viewpoint_m: np.ndarray | None,
     ) -> RecognitionResult:
-        """Every template laid at the tentative tracks' poses and refined in their cylinders (each the
-        size of the largest template's: every template is laid there). Its stats say whether each
+        """The tentative tracks tried where they stand, in cylinders the largest template's size (every
+        template may be laid there). Its stats say whether each
         track's own class won its place again ("tentative_won") and how many points it searched.
 
         Each track's own class is laid alone first: a template's fit is accepted or not whatever else
@@ -383,16 +387,7 @@ class GuidedSearch:
         # a cloud the whole search would refuse is refused here, whatever lies outside the cylinders
         points, sigma = validated_cloud(points, sigma, self.recognition)
         tracks = self.tracker.tracks
-        low_m, high_m = self.z_span_m
-        cylinders = [
-            SearchRegion(
-                t.position_m[:2].copy(),
-                self.radius_m,
-                float(t.position_m[2]) + low_m,
-                float(t.position_m[2]) + high_m,
-            )
-            for t in tracks
-        ]
+        cylinders = [_cylinder_around(t, self.radius_m, *self.z_span_m) for t in tracks]
         inside = points_in_regions(points, cylinders)
         poses = [(T, t.target) for t in tracks for T in self._turns(t)]
 
@@ -422,8 +417,7 @@ class GuidedSearch:
         if not alone.stats["tentative_won"]:
             return alone
         result = laid(None)
-        for stage, ms in alone.stage_times_ms.items():  # both are the try's time
-            result.stage_times_ms[stage] = result.stage_times_ms.get(stage, 0.0) + ms
+        _add_stage_times(result, alone)  # both are the try's time
         return result
 
     def _at_track(self, detection: Detection, track: Track) -> bool:
