@@ -70,6 +70,29 @@ def test_urgent_inputs_go_ahead_of_the_inputs_queued_before_them(hub):
     assert sorted(order[1:]) == sorted(name for name in KEYS if name != "SearchGuidance")
 
 
+def test_a_restarted_node_handles_again_the_input_a_killed_one_had_in_hand(hub, tmp_path):
+    """The in-flight journal: a camera image in hand when the process died comes first, byte for byte."""
+    image = KEYS["Image"]
+    config = peer_config(hub)
+    with Node("receiver", "uav9", [image], zenoh_config=config, state_dir=tmp_path) as first:
+        child = subprocess.Popen(
+            [sys.executable, str(HERE / "_publish_examples.py"), hub, "1.5"],
+            env=bus_env(hub),
+            cwd=REPO,
+        )
+        child.wait(20)
+        in_hand = next(first.events(timeout_s=5))
+        # the first process is still inside its handler: a second one starts as after a kill
+        with Node(
+            "receiver", "uav9", [image], zenoh_config=config, state_dir=tmp_path, replay_lost=True
+        ) as second:
+            again = next(second.events(timeout_s=1))
+    assert in_hand.type_name == again.type_name == "Image"
+    assert again.key == image
+    assert_same(in_hand.data, again.data)
+    assert_same(example("Image"), again.data)
+
+
 def _collect(session: zenoh.Session, key: str) -> list[dict]:
     """The messages that arrive on `key` from now on, decoded, in arrival order."""
     found: list[dict] = []
