@@ -9,7 +9,10 @@ matcher works on the previous one), and the output recording gives, per scene:
   over every scene and in the steady state: from the first scene, after a track is confirmed, that left
   within a frame interval (before it, the scenes wait behind the flight's first whole searches);
 - the interval between scenes, sustained: the span of the Detections over the scenes answered after the first;
-- frames unanswered (a service that falls behind drops inputs once its queue is full, and says so).
+- frames unanswered (a service that falls behind drops inputs once its queue is full, and says so);
+- the scenes that waited for a whole search still running in the matcher's worker when its joining
+  frame came (their Timing's "join_wait"): the lag (`tracking.whole_search_lag_frames`) is too short
+  for this machine at this rate.
 
 Beside it, the services' own time per scene (their Timing messages) and the reference workload of
 `atr.evaluation.timing` timed in this process, so the figures compare across machines.
@@ -49,6 +52,7 @@ def measure(out: Path, uav: str = "uav1") -> dict[str, float]:
     frame_s: dict[int, float] = {}
     answer_s: dict[int, float] = {}
     busy_ms: dict[str, list[float]] = {}
+    join_wait_ms: list[float] = []
     held_from: int | None = None  # the stamp of the first scene with a confirmed track
     for topic, message in iter_messages(out):
         if topic == f"atr/{uav}/camera/image":
@@ -62,6 +66,8 @@ def measure(out: Path, uav: str = "uav1") -> dict[str, float]:
         elif topic.startswith(f"atr/{uav}/") and topic.endswith("/timing"):
             timing = codec.unpack(message.data)
             busy_ms.setdefault(timing["service"], []).append(float(timing["total_ms"]))
+            if "join_wait" in timing["stages_ms"]:
+                join_wait_ms.append(float(timing["stages_ms"]["join_wait"]))
     answered = sorted(s for s in answer_s if s in frame_s)
     latency_s = [answer_s[s] - frame_s[s] for s in answered]
     # the steady state: from the first scene, after a track is confirmed, that left within a frame
@@ -87,6 +93,8 @@ def measure(out: Path, uav: str = "uav1") -> dict[str, float]:
         "scenes_before_steady": float(len(answered) - len(steady_s)),
         "steady_latency_p95_s": float(np.percentile(steady_s, 95)) if steady_s else float("nan"),
         "latency_max_s": float(max(latency_s)) if latency_s else float("nan"),
+        "scenes_waited": float(len(join_wait_ms)),
+        "join_wait_max_s": max(join_wait_ms) / 1e3 if join_wait_ms else 0.0,
     }
     for service, ms in sorted(busy_ms.items()):
         figures[f"{service}_ms"] = statistics.median(ms)
@@ -130,7 +138,9 @@ def main() -> None:
                 f"{f['scene_interval_s'] * 1e3 / reference_ms:.1f} x reference); latency p50 "
                 f"{f['latency_p50_s'] * 1e3:.0f} ms, p95 {f['latency_p95_s'] * 1e3:.0f} ms, max "
                 f"{f['latency_max_s'] * 1e3:.0f} ms; steady (after the first "
-                f"{f['scenes_before_steady']:.0f} scenes) p95 {f['steady_latency_p95_s'] * 1e3:.0f} ms\n"
+                f"{f['scenes_before_steady']:.0f} scenes) p95 {f['steady_latency_p95_s'] * 1e3:.0f} ms; "
+                f"{f['scenes_waited']:.0f} scenes waited for a whole search (at most "
+                f"{f['join_wait_max_s'] * 1e3:.0f} ms)\n"
                 f"    each service's own time per input (median): {busy}"
             )
 

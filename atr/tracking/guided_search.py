@@ -33,6 +33,7 @@ flight is not a second whole search.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from concurrent.futures import Future
 from concurrent.futures.process import BrokenProcessPool
@@ -280,7 +281,7 @@ class GuidedSearch:
         # a cloud matched in regions is searched there; one matched whole (or not said) where the
         # schedule says: at the camera's pace sfm matches pairs whole until the guidance reaches it
         regions = list(cloud_regions) if cloud_regions else self.regions(frame_seq)
-        late, joined = self._join(frame_seq) if self._lagged else ([], None)
+        late, joined, waited_ms = self._join(frame_seq) if self._lagged else ([], None, 0.0)
         handed_over = False
         if regions is None and self._lagged and (live := self.held_regions()) is not None:
             # a track is held: the whole search runs beside the next scenes (unless the one before
@@ -352,6 +353,11 @@ class GuidedSearch:
             result.detections, kept = self._joined(result.detections, late)
             result.stats["late_detections"] = kept
             result.stats["joined_whole_search_of_frame"] = joined
+        if waited_ms > 0.0:
+            # the lane's search was still running when its joining scene came: the lag is too short
+            # for this machine at this frame rate (a time, so in the stage times, never in the stats)
+            result.stage_times_ms["join_wait"] = waited_ms
+            result.stage_times_ms["total"] = result.stage_times_ms.get("total", 0.0) + waited_ms
         if self.tracking.guided_search:
             whole = regions is None or handed_over
             self._observe(result, stamp_ns, frame_seq, viewpoint_m, whole=whole)
@@ -453,23 +459,26 @@ class GuidedSearch:
         self._pending = _PendingSearch(frame_seq, frame_seq + lag, future)
         return True
 
-    def _join(self, frame_seq: int) -> tuple[list[Detection], int | None]:
+    def _join(self, frame_seq: int) -> tuple[list[Detection], int | None, float]:
         """The detections of the whole search in the lane when this frame is the one they join (waiting
-        for it if it still runs), and the frame it started at; else none. A search started at a later
-        frame than this one (another flight, a replay) is dropped.
+        for it if it still runs), the frame it started at, and how long this scene waited for it (ms);
+        else none. A search started at a later frame than this one (another flight, a replay) is dropped.
         """
         pending = self._pending
         if pending is None or frame_seq < pending.join_frame_seq:
             if pending is not None and frame_seq < pending.frame_seq:
                 pending.result.cancel()
                 self._pending = None
-            return [], None
+            return [], None, 0.0
         self._pending = None
+        started = None if pending.result.done() else time.perf_counter()
         try:
-            return pending.result.result().detections, pending.frame_seq
+            detections = pending.result.result().detections
         except (AtrError, BrokenProcessPool):
             # a cloud recognize refused, or a worker that died: the scene keeps its own answer
-            return [], pending.frame_seq
+            detections = []
+        waited_ms = 0.0 if started is None else 1e3 * (time.perf_counter() - started)
+        return detections, pending.frame_seq, waited_ms
 
     def _joined(self, own: list[Detection], late: list[Detection]) -> tuple[list[Detection], int]:
         """A scene's detections with a lagged whole search's joined, and how many of those were kept.

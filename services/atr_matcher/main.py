@@ -22,6 +22,7 @@ Example:
 
 from __future__ import annotations
 
+import logging
 from collections import deque
 from contextlib import nullcontext
 
@@ -35,6 +36,8 @@ from atr.tracking.lane import ProcessLane
 from bus import keys
 from bus.clouds import cloud_points
 from bus.service import effective_config, service_arguments, start_node
+
+log = logging.getLogger("atr")
 
 
 def _detection(detection: object) -> dict:
@@ -126,4 +129,14 @@ def main(argv: list[str] | None = None) -> int:
                 node.publish(keys.detections(args.uav), answer)
                 answered.append((message.source, message.seq))
                 node.timing(message.seq, message.stamp_ns, result.stage_times_ms)
+                if (waited_ms := result.stage_times_ms.get("join_wait", 0.0)) > 0.0:
+                    log.warning(
+                        "the scene of frame %d waited %.0f ms for the whole search of frame %d: "
+                        "tracking.whole_search_lag_frames=%d is too short for this machine at this "
+                        "frame rate (docs/performance.md: the service graph at the camera's pace)",
+                        int(cloud["frame_seqs"][-1]),
+                        waited_ms,
+                        result.stats["joined_whole_search_of_frame"],
+                        tracking.whole_search_lag_frames,
+                    )
     return 0

@@ -6,16 +6,20 @@ The tests before the lagged ones set ``whole_search_lag_frames=0``: a whole sear
 from __future__ import annotations
 
 import dataclasses
+import threading
+import time
+from concurrent.futures import Future
 
 import numpy as np
 import pytest
 
-from atr.recognition import RecognitionConfig, build_template, recognize
+from atr.recognition import RecognitionConfig, RecognitionResult, build_template, recognize
 from atr.recognition import synthetic as syn
 from atr.recognition._backend import have_descriptor
 from atr.regions import SearchRegion
 from atr.tracking import TrackingConfig, TrackInput
 from atr.tracking.guided_search import GuidedSearch, SearchSchedule
+from atr.tracking.lane import WholeSearch
 
 DESC = "shot" if have_descriptor("shot") else "fpfh"
 AZ, EL, RANGE = np.radians(20.0), np.radians(30.0), 50.0
@@ -433,6 +437,53 @@ def test_a_lagged_search_answers_the_same_in_a_process_of_its_own(world) -> None
         [d.to_dict() for d in r.detections] for r in in_worker
     ]
     assert in_worker[2].stats["late_detections"] >= 1
+
+
+class _LateLane:
+    """Runs each whole search on a thread and hands its result over `delay_s` later: the worker of a
+    machine too slow for the lag."""
+
+    def __init__(self, delay_s: float) -> None:
+        self.delay_s = delay_s
+
+    def submit(self, search: WholeSearch) -> Future[RecognitionResult]:
+        future: Future[RecognitionResult] = Future()
+
+        def run() -> None:
+            result = search.run()
+            time.sleep(self.delay_s)
+            future.set_result(result)
+
+        threading.Thread(target=run, daemon=True).start()
+        return future
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_scene_that_waits_for_a_lagged_search_says_how_long(world) -> None:
+    """The joining scene's stage times hold the wait ("join_wait", in its total too), so the matcher
+    can say its lag is too short; a search done in time adds none, and the answers are the same."""
+    cfg, templates, scene, _ = world
+    tracking = TrackingConfig(
+        guided_search=True, full_search_every_frames=6, whole_search_lag_frames=2
+    )
+
+    def flight(lane: _LateLane | None) -> list:
+        search = GuidedSearch(templates, cfg, tracking, lane)
+        _hold_the_truck(search)
+        return _lagged_flight(search, scene, range(1, 4))
+
+    in_place = flight(None)
+    late = flight(_LateLane(delay_s=2.0))
+    assert not any("join_wait" in r.stage_times_ms for r in in_place)
+    waits = [r.stage_times_ms.get("join_wait", 0.0) for r in late]
+    assert waits[0] == waits[1] == 0.0  # frame 3 joins frame 1's search
+    assert waits[2] > 500.0, waits  # most of the two seconds the search was held back
+    assert late[2].stage_times_ms["total"] >= waits[2]
+    assert [[d.to_dict() for d in r.detections] for r in in_place] == [
+        [d.to_dict() for d in r.detections] for r in late
+    ]
 
 
 def test_a_lagged_search_of_another_flight_is_dropped(world) -> None:
