@@ -131,9 +131,10 @@ def main(argv: list[str] | None = None) -> int:
                 node.timing(message.seq, message.stamp_ns, result.stage_times_ms)
                 if (waited_ms := result.stage_times_ms.get("join_wait", 0.0)) > 0.0:
                     log.warning(
-                        "the scene of frame %d waited %.0f ms for the whole search of frame %d: "
-                        "tracking.whole_search_lag_frames=%d is too short for this machine at this "
-                        "frame rate (docs/performance.md: the service graph at the camera's pace)",
+                        "the scene of frame %d waited %.0f ms for the whole search of frame %d; "
+                        "at the camera's pace (not in a lock-step replay, whose frames wait for "
+                        "every answer) tracking.whole_search_lag_frames=%d is too short for this "
+                        "machine at this frame rate (docs/performance.md, the service graph)",
                         int(cloud["frame_seqs"][-1]),
                         waited_ms,
                         result.stats["joined_whole_search_of_frame"],
