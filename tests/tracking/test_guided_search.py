@@ -360,6 +360,18 @@ def _lagged_flight(search: GuidedSearch, scene: np.ndarray, frames: range) -> li
     ]
 
 
+def _answers(results: list) -> list:
+    return [[d.to_dict() for d in r.detections] for r in results]
+
+
+def _flight_holding_the_truck(world, tracking: TrackingConfig, lane, frames: range) -> list:
+    """A lagged flight over `world`'s scene with the truck's track held from its start."""
+    cfg, templates, scene, _ = world
+    search = GuidedSearch(templates, cfg, tracking, lane)
+    _hold_the_truck(search)
+    return _lagged_flight(search, scene, frames)
+
+
 def _hold_the_truck(search: GuidedSearch) -> None:
     """The truck's track held before the flight's first scene (seen twice: confirmed)."""
     truck = TrackInput("truck6x6", TRUCK_SHIFT_M, yaw_rad=0.2, score=0.8)
@@ -420,22 +432,13 @@ def test_a_lagged_search_answers_the_same_in_a_process_of_its_own(world) -> None
     """The lane a whole search runs in changes when it ends, not what any scene is answered."""
     from atr.tracking.lane import ProcessLane
 
-    cfg, templates, scene, _ = world
     tracking = TrackingConfig(
         guided_search=True, full_search_every_frames=3, whole_search_lag_frames=2
     )
-
-    def flight(lane: ProcessLane | None) -> list:
-        search = GuidedSearch(templates, cfg, tracking, lane)
-        _hold_the_truck(search)
-        return _lagged_flight(search, scene, range(1, 8))
-
-    in_place = flight(None)
+    in_place = _flight_holding_the_truck(world, tracking, None, range(1, 8))
     with ProcessLane() as lane:
-        in_worker = flight(lane)
-    assert [[d.to_dict() for d in r.detections] for r in in_place] == [
-        [d.to_dict() for d in r.detections] for r in in_worker
-    ]
+        in_worker = _flight_holding_the_truck(world, tracking, lane, range(1, 8))
+    assert _answers(in_place) == _answers(in_worker)
     assert in_worker[2].stats["late_detections"] >= 1
 
 
@@ -464,26 +467,17 @@ class _LateLane:
 def test_a_scene_that_waits_for_a_lagged_search_says_how_long(world) -> None:
     """The joining scene's stage times hold the wait ("join_wait", in its total too), so the matcher
     can say its lag is too short; a search done in time adds none, and the answers are the same."""
-    cfg, templates, scene, _ = world
     tracking = TrackingConfig(
         guided_search=True, full_search_every_frames=6, whole_search_lag_frames=2
     )
-
-    def flight(lane: _LateLane | None) -> list:
-        search = GuidedSearch(templates, cfg, tracking, lane)
-        _hold_the_truck(search)
-        return _lagged_flight(search, scene, range(1, 4))
-
-    in_place = flight(None)
-    late = flight(_LateLane(delay_s=2.0))
+    in_place = _flight_holding_the_truck(world, tracking, None, range(1, 4))
+    late = _flight_holding_the_truck(world, tracking, _LateLane(delay_s=2.0), range(1, 4))
     assert not any("join_wait" in r.stage_times_ms for r in in_place)
     waits = [r.stage_times_ms.get("join_wait", 0.0) for r in late]
     assert waits[0] == waits[1] == 0.0  # frame 3 joins frame 1's search
     assert waits[2] > 500.0, waits  # most of the two seconds the search was held back
     assert late[2].stage_times_ms["total"] >= waits[2]
-    assert [[d.to_dict() for d in r.detections] for r in in_place] == [
-        [d.to_dict() for d in r.detections] for r in late
-    ]
+    assert _answers(in_place) == _answers(late)
 
 
 def test_a_lagged_search_of_another_flight_is_dropped(world) -> None:
