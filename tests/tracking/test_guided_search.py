@@ -453,7 +453,11 @@ class _LateLane:
         future: Future[RecognitionResult] = Future()
 
         def run() -> None:
-            result = search.run()
+            try:
+                result = search.run()
+            except Exception as error:  # noqa: BLE001 - handed to the scene that joins it, as a lane does
+                future.set_exception(error)
+                return
             time.sleep(self.delay_s)
             future.set_result(result)
 
