@@ -207,13 +207,23 @@ class Recorder(ClosesOnExit):
         self._subscribers = [reliable.Subscriber(session, sub_key, self._on_sample, self._on_loss)]
         self._closed = False
         # Provenance is gathered after the subscription exists (loading the configuration takes a
-        # second or two): the recording starts at once, the record follows within a few seconds.
+        # second or two): the recording starts at once, the record follows within a few seconds
+        # (`wait_for_provenance`).
         self._provenance_thread: threading.Thread | None = None
         if context is not None:
             self._provenance_thread = threading.Thread(
                 target=self._gather_provenance, args=(context,), name="provenance", daemon=True
             )
             self._provenance_thread.start()
+
+    def wait_for_provenance(self, timeout_s: float = PROVENANCE_WAIT_S) -> None:
+        """Return once the provenance record is queued (or after `timeout_s`). The recorder service
+        declares itself ready only then: gathering it (loading the configuration, hashing the source
+        and the input recording) takes two CPU seconds, which a flight started at once would share
+        with its first scenes. Messages that come meanwhile are recorded all the same.
+        """
+        if self._provenance_thread is not None:
+            self._provenance_thread.join(timeout=timeout_s)
 
     def _gather_provenance(self, context: RunContext) -> None:
         record, config_bytes = gather(context, self.recording, self.segment)
@@ -419,8 +429,7 @@ class Recorder(ClosesOnExit):
         self._closed = True
         for sub in self._subscribers:
             sub.undeclare()
-        if self._provenance_thread is not None:  # a short recording still gets its provenance
-            self._provenance_thread.join(timeout=PROVENANCE_WAIT_S)
+        self.wait_for_provenance()  # a short recording still gets its provenance
         with self._clock:
             self._queue.put(_STOP)
         self._thread.join()
@@ -528,6 +537,7 @@ def run_recorder(
         )
         node.recorder = recorder
         log.info("recording %s to %s", ", ".join(recorder.config.key_exprs), recorder.path)
+        recorder.wait_for_provenance()
         node.ready()
         if recorder.continues is not None:
             cut = (

@@ -214,6 +214,56 @@ def test_every_recording_says_what_made_it_and_closes_with_a_marker(
     assert report.closed and report.provenance[0]["layout"] == "local"
 
 
+def test_a_recorder_says_it_is_running_once_its_provenance_is_in_hand(
+    hub: str, tmp_path: Path
+) -> None:
+    """The provenance record precedes every message sent after the recorder said it was running:
+    gathering it (two CPU seconds) is done before a flight that waits for the recorder starts, not
+    beside the flight's first scenes."""
+    from mcap.records import Channel, Message, Metadata
+    from mcap.stream_reader import StreamReader
+
+    from bus import provenance
+
+    source = tmp_path / "input.mcap"
+    with open(source, "wb") as f:  # a replay's input is hashed into the provenance: a second here
+        f.truncate(1 << 30)  # sparse: no disk
+    out = tmp_path / "rec.mcap"
+    command = (
+        "service",
+        "recorder",
+        "--out",
+        str(out),
+        "--layout",
+        "local",
+        "--input",
+        str(source),
+    )
+    watcher = Watcher(hub)  # a session that knows the recorder by the time it says it runs
+    try:
+        recorder = atr(hub, *command)
+        watcher.wait_for("recorder")
+        watcher.session.put("atr/uav1/probe", b"sent as soon as the recorder said it was running")
+        time.sleep(0.3)
+        recorder.send_signal(signal.SIGTERM)
+        code, err = finish(recorder)
+        assert code == 0, err
+    finally:
+        watcher.close()
+
+    order = []  # the file's records in order, chunks opened
+    with open(out, "rb") as f:
+        for r in StreamReader(f, skip_magic=False).records:
+            if isinstance(r, Channel):
+                order.append(("channel", r.id, r.topic))
+            elif isinstance(r, Message):
+                order.append(("message", r.channel_id))
+            elif isinstance(r, Metadata) and r.name == provenance.METADATA_NAME:
+                order.append(("provenance",))
+    probe = next(c[1] for c in order if c[0] == "channel" and c[2] == "atr/uav1/probe")
+    assert order.index(("provenance",)) < order.index(("message", probe)), order
+
+
 def test_a_recorder_with_a_key_seals_its_file_when_it_closes(hub: str, tmp_path: Path) -> None:
     """The air recorder's half of the chain of custody: its file is sealed as it closes, and the
     verifier with the pinned public key finds it intact; a bad key is refused before recording."""
