@@ -13,6 +13,7 @@ from pathlib import Path
 
 import msgpack
 import pytest
+import zenoh
 from mcap.reader import make_reader
 
 from bus import codec, keys, mcap_tools, schemas
@@ -36,13 +37,29 @@ def _messages(path: Path) -> list[tuple[str, object, object]]:
 @contextmanager
 def _recorder(hub: str, *command: str) -> Iterator[subprocess.Popen[bytes]]:
     """`atr COMMAND` (a recorder) on the hub's bus, once its Status says it is running."""
+    with _recorder_and_bus(hub, *command) as (recorder, _):
+        yield recorder
+
+
+@contextmanager
+def _recorder_and_bus(
+    hub: str, *command: str
+) -> Iterator[tuple[subprocess.Popen[bytes], zenoh.Session]]:
+    """As `_recorder`, with the session that saw its Status: one that already knows the recorder."""
     watcher = Watcher(hub)
     try:
         recorder = atr(hub, *command)
         watcher.wait_for("recorder")
-        yield recorder
+        yield recorder, watcher.session
     finally:
         watcher.close()
+
+
+def _stop(recorder: subprocess.Popen[bytes], sig: int = signal.SIGTERM) -> None:
+    """Stop the recorder with `sig`; it must exit 0."""
+    recorder.send_signal(sig)
+    code, err = finish(recorder)
+    assert code == 0, err
 
 
 def _record_published(hub: str, command: tuple[str, ...], *publish: str) -> None:
@@ -52,9 +69,7 @@ def _record_published(hub: str, command: tuple[str, ...], *publish: str) -> None
         code, err = finish(helper(hub, "publish", *publish))
         assert code == 0, err
         time.sleep(0.3)
-        recorder.send_signal(signal.SIGTERM)
-        code, err = finish(recorder)
-        assert code == 0, err
+        _stop(recorder)
 
 
 def test_records_every_message_as_sent_and_closes_cleanly_on_sigterm(
@@ -124,9 +139,7 @@ def test_bad_input_from_a_foreign_session_is_recorded_as_it_came(hub: str, tmp_p
             for key, payload, attachment in sent:
                 foreign.put(key, payload, attachment=attachment)
             time.sleep(0.5)
-            recorder.send_signal(signal.SIGINT)
-            code, err = finish(recorder)
-            assert code == 0, err
+            _stop(recorder, signal.SIGINT)
     finally:
         foreign.close()
 
@@ -239,17 +252,10 @@ def test_a_recorder_says_it_is_running_once_its_provenance_is_in_hand(
         "--input",
         str(source),
     )
-    watcher = Watcher(hub)  # a session that knows the recorder by the time it says it runs
-    try:
-        recorder = atr(hub, *command)
-        watcher.wait_for("recorder")
-        watcher.session.put("atr/uav1/probe", b"sent as soon as the recorder said it was running")
+    with _recorder_and_bus(hub, *command) as (recorder, bus):
+        bus.put("atr/uav1/probe", b"sent as soon as the recorder said it was running")
         time.sleep(0.3)
-        recorder.send_signal(signal.SIGTERM)
-        code, err = finish(recorder)
-        assert code == 0, err
-    finally:
-        watcher.close()
+        _stop(recorder)
 
     order = []  # the file's records in order, chunks opened
     with open(out, "rb") as f:
