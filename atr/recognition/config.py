@@ -124,6 +124,8 @@ class MatcherConfig:
         knn_across_views: with a multi-view template, take each keypoint's k nearest over all views of its
             elevation ring together instead of k per view (k-fold fewer correspondences; measured in
             docs/recognition.md).
+        ring_reach_deg: a scene keypoint meets the views of the elevation ring nearest the camera's
+            elevation seen from it and of every ring within this many degrees of that elevation.
         k_consensus: geometric-consistency tolerance / resolution: two correspondences agree when their
             scene and model distances differ by less than this (PCL GeometricConsistencyGrouping gc_size).
             Two voxels' worth covers the subsampling jitter of both clouds.
@@ -214,6 +216,7 @@ class MatcherConfig:
     knndr_ratio: float = bounded(1.0, gt=0, le=1)
     max_correspondences: int = 20000
     knn_across_views: bool = False
+    ring_reach_deg: float = bounded(0.0, ge=0, le=90)
     k_consensus: float = 2.0
     min_group_size: int = bounded(5, ge=3, why="a pose needs 3")
     max_groups: int = 20

@@ -346,13 +346,13 @@ class _Search:
         with self.clock.stage("describe"):
             scene_desc = self._describe(tpl)
         with self.clock.stage("match"):
-            views = template_views(tpl, self.scene)
+            views = template_views(tpl, self.scene, self.config.matcher.ring_reach_deg)
             matches = _match_views(
                 scene_desc,
                 tpl.descriptors,
                 views.slices,
                 views.elevations_deg,
-                views.ring_of_keypoint,
+                views.keypoints_of_ring,
                 self.config,
             )
         model_kp = np.asarray(tpl.keypoints_m, np.float64)
@@ -378,7 +378,7 @@ class _Search:
 
     def confirm(self, tpl: Template, places_T_world_target: Sequence[np.ndarray]) -> dict[str, Any]:
         """Verify one template at given poses, each with the view the camera sees it from."""
-        views = TemplateViews(tpl.view_slices(), None, [], np.zeros(0))
+        views = TemplateViews(tpl.view_slices(), None, [], {})
         hyps = [
             (_facing_view(tpl, T, self.scene.viewpoint_m), Hypothesis(np.asarray(T, float), 0, 0))
             for T in places_T_world_target
@@ -395,7 +395,7 @@ class _Search:
             return 0
         model_all = np.asarray(tpl.points_m, np.float64)
         slices = tpl.view_slices()
-        views = TemplateViews(slices, None, [], np.zeros(0))
+        views = TemplateViews(slices, None, [], {})
         centroid_m = model_all.mean(axis=0)
         view_centroids_m = [model_all[points].mean(axis=0) for points, _ in slices]
         n = self.config.matcher.cue_headings
@@ -628,10 +628,10 @@ def _match_views(
     model_desc: np.ndarray,
     views: list[tuple[slice, slice]],
     view_el: Sequence[float],
-    ring_of_vertex: np.ndarray,
+    keypoints_of_ring: dict[float, np.ndarray],
     config: RecognitionConfig,
 ) -> list[Correspondences]:
-    """KNNDR of each scene keypoint against the views of its elevation ring.
+    """KNNDR of each scene keypoint against the views of its elevation rings.
 
     ``config.knn_across_views``: the k nearest are taken over all views of the ring together (one
     neighbour list per keypoint, then split by view); otherwise each view has its own k nearest.
@@ -648,8 +648,7 @@ def _match_views(
         return a[idx]
 
     view_el_arr = np.asarray(view_el, np.float64)
-    for ring in np.unique(ring_of_vertex):
-        rows = np.flatnonzero(ring_of_vertex == ring)
+    for ring, rows in keypoints_of_ring.items():
         in_ring = np.flatnonzero(view_el_arr == ring)
         if len(rows) == 0 or len(in_ring) == 0:
             continue

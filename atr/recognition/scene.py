@@ -220,23 +220,25 @@ class TemplateViews:
         slices: (points slice, keypoints slice) of each view (``Template.view_slices``).
         azimuths_deg: azimuth of each view, degrees; None when unknown or unused.
         elevations_deg: elevation ring of each view, degrees (all 0 when unused).
-        ring_of_keypoint: (K,) the ring each scene keypoint is matched against, degrees.
+        keypoints_of_ring: for each ring (degrees), the scene keypoints matched against its views.
 
     """
 
     slices: list[tuple[slice, slice]]
     azimuths_deg: Sequence[float] | None
     elevations_deg: Sequence[float]
-    ring_of_keypoint: np.ndarray
+    keypoints_of_ring: dict[float, np.ndarray]
 
 
-def template_views(tpl: Template, scene: Scene) -> TemplateViews:
+def template_views(tpl: Template, scene: Scene, ring_reach_deg: float = 0.0) -> TemplateViews:
     """Each scene keypoint meets the views of the elevation ring nearest the camera's elevation seen
-    from it (the camera position is known); without a camera or views, every view.
+    from it (the camera position is known), and of every other ring within ``ring_reach_deg`` of that
+    elevation; without a camera or views, every view.
     """
     views = tpl.view_slices()
     view_az = tpl.params.get("view_azimuths_deg")
     view_el = tpl.params.get("view_elevations_deg")
+    every = np.arange(len(scene.kp_idx))
     if not (
         scene.viewpoint_m is not None
         and scene.upright
@@ -244,13 +246,16 @@ def template_views(tpl: Template, scene: Scene) -> TemplateViews:
         and view_el is not None
         and len(view_az) == len(views) == len(view_el)
     ):
-        return TemplateViews(views, None, [0.0] * len(views), np.zeros(len(scene.kp_idx)))
+        return TemplateViews(views, None, [0.0] * len(views), {0.0: every})
     keypoints = scene.keypoints
     rings = np.unique(np.asarray(view_el, np.float64))
     rel = np.asarray(scene.viewpoint_m, np.float64) - keypoints
     cam_el = np.degrees(np.arctan2(rel[:, 2], np.linalg.norm(rel[:, :2], axis=1)))
-    ring = rings[np.argmin(np.abs(cam_el[:, None] - rings[None, :]), axis=1)]
-    return TemplateViews(views, view_az, view_el, ring)
+    off_deg = np.abs(cam_el[:, None] - rings[None, :])
+    meets = off_deg <= ring_reach_deg
+    meets[every, np.argmin(off_deg, axis=1)] = True
+    keypoints_of_ring = {float(r): np.flatnonzero(meets[:, i]) for i, r in enumerate(rings)}
+    return TemplateViews(views, view_az, view_el, keypoints_of_ring)
 
 
 def heading_window(

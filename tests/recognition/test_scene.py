@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 
 from atr.recognition import RecognitionConfig
-from atr.recognition.scene import GroundCheck, Scene, remove_ground
+from atr.recognition.scene import GroundCheck, Scene, remove_ground, template_views
 from atr.recognition.steps import PointSet
 
 
@@ -70,3 +70,38 @@ def test_without_ground_in_reach_the_height_stays_as_icp_left_it():
     far = np.eye(4)
     far[:3, 3] = (200.0, 0.0, -0.4)  # nowhere near the cloud
     np.testing.assert_array_equal(GroundCheck(scene, config).placed(far), far)
+
+
+class _TwelveViewsOnThreeRings:
+    """A template's view layout: azimuths every 90 deg on rings at 0, 10 and 35 deg elevation."""
+
+    params = {
+        "view_azimuths_deg": [0.0, 90.0, 180.0, 270.0] * 3,
+        "view_elevations_deg": [0.0] * 4 + [10.0] * 4 + [35.0] * 4,
+    }
+
+    def view_slices(self) -> list[tuple[slice, slice]]:
+        return [(slice(i, i + 1), slice(i, i + 1)) for i in range(12)]
+
+
+def test_a_keypoint_meets_its_nearest_ring_and_every_ring_within_reach():
+    """Keypoints at 2 m height seen from 50 m away at 2.3, 15 and 45 deg of camera elevation."""
+    keypoints = np.array([[0.0, 0.0, 2.0], [1.0, 0.0, 2.0], [2.0, 0.0, 2.0]])
+    scene = Scene(PointSet(keypoints), np.array([0.0, -50.0, 4.0]), band=np.ones(3, bool))
+    scene.kp_idx = np.array([0, 1, 2])
+    views = template_views(_TwelveViewsOnThreeRings(), scene)
+    assert {r: list(k) for r, k in views.keypoints_of_ring.items()} == {
+        0.0: [0, 1, 2],
+        10.0: [],
+        35.0: [],
+    }
+    reach = template_views(_TwelveViewsOnThreeRings(), scene, ring_reach_deg=10.0)
+    assert {r: list(k) for r, k in reach.keypoints_of_ring.items()} == {
+        0.0: [0, 1, 2],
+        10.0: [0, 1, 2],  # 7.7 deg from 2.3 deg
+        35.0: [],
+    }
+    scene.viewpoint_m = np.array([0.0, -50.0, 2.0 + 50.0 * np.tan(np.radians(15.0))])
+    reach = template_views(_TwelveViewsOnThreeRings(), scene, ring_reach_deg=10.0)
+    # 15 deg: the 10 deg ring (nearest) only; 0 and 35 deg lie 15 and 20 deg off
+    assert [len(k) for k in reach.keypoints_of_ring.values()] == [0, 3, 0]

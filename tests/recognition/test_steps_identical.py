@@ -205,13 +205,12 @@ def reference_ransac(scene_keypoints, model_keypoints, corr, group, iterations, 
     return (T, int(max(final.sum(), counts[best])), n)
 
 
-def reference_match_views(scene_desc, model_desc, views, view_el, ring_of_vertex, config):
+def reference_match_views(scene_desc, model_desc, views, view_el, keypoints_of_ring, config):
     out = [
         Correspondences(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)) for _ in views
     ]
     view_el_arr = np.asarray(view_el, np.float64)
-    for ring in np.unique(ring_of_vertex):
-        rows = np.flatnonzero(ring_of_vertex == ring)
+    for ring, rows in keypoints_of_ring.items():
         in_ring = np.flatnonzero(view_el_arr == ring)
         if len(rows) == 0 or len(in_ring) == 0:
             continue
@@ -337,13 +336,18 @@ def test_match_views_matches_the_numpy_reference(across):
     bounds = np.concatenate([[0], np.cumsum(sizes)])
     views = [(slice(0, 1), slice(int(a), int(b))) for a, b in zip(bounds[:-1], bounds[1:])]
     config = RecognitionConfig(knn_across_views=across, max_correspondences=500)
-    for view_el, ring_of_vertex in (
-        ([10.0] * 12, np.full(150, 10.0)),  # one ring: every row and view, consecutive
-        ([10.0] * 6 + [30.0] * 6, rng.choice([10.0, 30.0], 150)),  # two rings, rows interleaved
-        ([10.0, 30.0] * 6, np.r_[np.full(70, 10.0), np.full(80, 30.0)]),  # views interleaved
+    interleaved = rng.choice([10.0, 30.0], 150)
+    for view_el, keypoints_of_ring in (
+        ([10.0] * 12, {10.0: np.arange(150)}),  # one ring: every row and view, consecutive
+        (  # two rings, rows interleaved
+            [10.0] * 6 + [30.0] * 6,
+            {r: np.flatnonzero(interleaved == r) for r in (10.0, 30.0)},
+        ),
+        ([10.0, 30.0] * 6, {10.0: np.arange(70), 30.0: np.arange(70, 150)}),  # views interleaved
+        ([10.0, 30.0] * 6, {10.0: np.arange(100), 30.0: np.arange(50, 150)}),  # rows in both
     ):
-        got = _match_views(scene, model, views, view_el, ring_of_vertex, config)
-        want = reference_match_views(scene, model, views, view_el, ring_of_vertex, config)
+        got = _match_views(scene, model, views, view_el, keypoints_of_ring, config)
+        want = reference_match_views(scene, model, views, view_el, keypoints_of_ring, config)
         assert len(got) == len(want) == len(views)
         assert all(_same_corr(g, w) for g, w in zip(got, want, strict=True))
         assert sum(len(w) for w in want) > 100
