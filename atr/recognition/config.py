@@ -125,7 +125,9 @@ class MatcherConfig:
             elevation ring together instead of k per view (k-fold fewer correspondences; measured in
             docs/recognition.md).
         ring_reach_deg: a scene keypoint meets the views of the elevation ring nearest the camera's
-            elevation seen from it and of every ring within this many degrees of that elevation.
+            elevation seen from it and of every ring within this many degrees of that elevation. 0:
+            the nearest ring only. 10 beside a 0-degree ring cost the T-72 on the tuning seed
+            (docs/recognition.md, "A third ring at 0°").
         k_consensus: geometric-consistency tolerance / resolution: two correspondences agree when their
             scene and model distances differ by less than this (PCL GeometricConsistencyGrouping gc_size).
             Two voxels' worth covers the subsampling jitter of both clouds.

@@ -85,7 +85,7 @@ class _TwelveViewsOnThreeRings:
 
 
 def test_a_keypoint_meets_its_nearest_ring_and_every_ring_within_reach():
-    """Keypoints at 2 m height seen from 50 m away at 2.3, 15 and 45 deg of camera elevation."""
+    """Keypoints at 2 m height seen from 50 m away at 2.3 and at 15 deg of camera elevation."""
     keypoints = np.array([[0.0, 0.0, 2.0], [1.0, 0.0, 2.0], [2.0, 0.0, 2.0]])
     scene = Scene(PointSet(keypoints), np.array([0.0, -50.0, 4.0]), band=np.ones(3, bool))
     scene.kp_idx = np.array([0, 1, 2])
